@@ -1,0 +1,24 @@
+#!/usr/bin/env bash
+# Installs what rankslam needs on Debian bookworm, as root. With --test, also what the test
+# suite needs (test-only peers and oracles, the real-kernel test machinery).
+set -euo pipefail
+
+build_packages=(
+  build-essential cmake ninja-build pkg-config file
+  libeigen3-dev libopencv-dev libceres-dev libsuitesparse-dev libopenni2-dev
+  libnanoflann-dev libcli11-dev libyaml-cpp-dev
+)
+test_packages=(
+  libgtest-dev libgmock-dev libbenchmark-dev libopencv-contrib-dev
+)
+
+packages=("${build_packages[@]}")
+if [[ "${1:-}" == "--test" ]]; then
+  packages+=("${test_packages[@]}")
+fi
+# Tests are built by default, so the product build needs GoogleTest too.
+packages+=(libgtest-dev libgmock-dev libbenchmark-dev)
+
+export DEBIAN_FRONTEND=noninteractive
+apt-get update -qq
+apt-get install -y -qq --no-install-recommends "${packages[@]}"

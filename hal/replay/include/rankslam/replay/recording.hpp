@@ -1,0 +1,63 @@
+#pragma once
+
+#include "rankslam/hal/calibration.hpp"
+#include "rankslam/hal/messages.hpp"
+
+#include <filesystem>
+#include <optional>
+#include <string>
+#include <vector>
+
+namespace rankslam::replay {
+
+/// One associated colour + depth (+ IR) capture of a recording, as files relative to its root.
+struct FrameEntry {
+  double rgb_stamp_s = 0.0;
+  std::string rgb_file;
+  double depth_stamp_s = 0.0;
+  std::string depth_file;
+  std::string ir_file;  ///< Empty when the recording has no IR stream or no IR image near this frame.
+};
+
+/// One wide-angle camera image of a recording.
+struct ImageEntry {
+  double stamp_s = 0.0;
+  std::string file;
+};
+
+/// Everything a recording directory holds, indexed but not yet decoded.
+struct Recording {
+  std::filesystem::path root;
+  hal::Calibration calibration;
+  std::vector<FrameEntry> frames;
+  std::vector<ImageEntry> fisheye;
+  std::vector<hal::CanFrame> can_frames;
+  /// Path of groundtruth.txt when the recording has one.
+  std::optional<std::filesystem::path> ground_truth;
+  /// Problems that did not stop indexing (unparsable lines, unmatched stamps), each naming its file.
+  std::vector<std::string> warnings;
+};
+
+/// Largest stamp difference, in seconds, for two streams' samples to count as simultaneous
+/// (the TUM benchmark's associate.py default).
+inline constexpr double kMaxAssociationGap_s = 0.02;
+
+/// Indexes a recording directory (see README, "Recording format"). Returns an error message
+/// naming the file and line on failure, an empty string on success.
+[[nodiscard]] std::string open_recording(const std::filesystem::path& root, Recording& recording);
+
+/// Associates two stamp lists as the TUM benchmark does: every pair closer than `max_gap_s`,
+/// taken greedily by increasing gap so that each stamp is used at most once. Returns index pairs
+/// sorted by the first list's stamps.
+[[nodiscard]] std::vector<std::pair<std::size_t, std::size_t>> associate_stamps(
+    const std::vector<double>& first, const std::vector<double>& second, double max_gap_s);
+
+/// Reads a calibration.yaml (README, "calibration.yaml"). Error message naming file and field
+/// on failure, empty on success.
+[[nodiscard]] std::string load_calibration_yaml(const std::filesystem::path& path, hal::Calibration& calibration);
+
+/// The TUM benchmark's published calibration for camera "freiburg1", "freiburg2" or "freiburg3";
+/// nullopt for any other name.
+[[nodiscard]] std::optional<hal::Calibration> tum_calibration(const std::string& camera_name);
+
+}  // namespace rankslam::replay

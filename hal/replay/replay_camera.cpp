@@ -1,0 +1,220 @@
+#include "rankslam/replay/replay_camera.hpp"
+
+#include <opencv2/imgcodecs.hpp>
+
+#include <algorithm>
+#include <cmath>
+#include <initializer_list>
+#include <fstream>
+
+namespace rankslam::replay {
+namespace {
+
+// Reads a whole file into `buffer`, reusing its capacity.
+bool read_file(const std::filesystem::path& path, std::vector<unsigned char>& buffer) {
+  std::ifstream in(path, std::ios::binary | std::ios::ate);
+  if (!in) return false;
+  const auto size = in.tellg();
+  if (size <= 0) return false;
+  buffer.resize(static_cast<std::size_t>(size));
+  in.seekg(0);
+  return static_cast<bool>(in.read(reinterpret_cast<char*>(buffer.data()), size));
+}
+
+// True when the buffer starts like an image format the replay accepts (PNG, JPEG, PPM/PGM,
+// TIFF). OpenCV leaves a preallocated destination untouched, and reports nothing, when no
+// decoder recognises the data, so unknown data must be caught before decoding.
+bool has_image_signature(const std::vector<unsigned char>& buffer) {
+  const auto starts_with = [&](std::initializer_list<unsigned char> prefix) {
+    return buffer.size() >= prefix.size() && std::equal(prefix.begin(), prefix.end(), buffer.begin());
+  };
+  return starts_with({0x89, 'P', 'N', 'G', '\r', '\n', 0x1A, '\n'}) || starts_with({0xFF, 0xD8, 0xFF}) ||
+         starts_with({'P', '5'}) || starts_with({'P', '6'}) || starts_with({'I', 'I', 0x2A, 0x00}) ||
+         starts_with({'M', 'M', 0x00, 0x2A});
+}
+
+// Decodes `buffer` into `image` in place when its size and type already fit. A decoder that
+// fails after reading the header releases `image`, so an empty result means corrupt data.
+bool decode(const std::vector<unsigned char>& buffer, int flags, cv::Mat& image) {
+  if (!has_image_signature(buffer)) return false;
+  try {
+    cv::Mat decoded = cv::imdecode(buffer, flags, &image);
+    return !decoded.empty();
+  } catch (const cv::Exception&) {
+    return false;
+  }
+}
+
+}  // namespace
+
+ReplayDepthCamera::ReplayDepthCamera(const Recording& recording, ReplayOptions options)
+    : recording_(recording), options_(options) {}
+
+ReplayDepthCamera::~ReplayDepthCamera() { close(); }
+
+std::string ReplayDepthCamera::open() {
+  close();
+  const auto total = static_cast<std::uint32_t>(recording_.frames.size());
+  frame_count_ = options_.max_frames > 0 ? std::min(options_.max_frames, total) : total;
+  if (frame_count_ == 0) return recording_.root.string() + ": no frames to replay";
+  if (options_.rate < 0.0 || !std::isfinite(options_.rate)) return "replay rate must be 0 (as fast as possible) or positive";
+  const auto& camera = recording_.calibration.rgb;
+  for (auto& slot : slots_) {
+    // Allocate every image once so decoding reuses the memory.
+    slot.frame.rgb.create(camera.height, camera.width, CV_8UC3);
+    slot.frame.depth.create(camera.height, camera.width, CV_16UC1);
+    slot.frame.ir.release();
+    slot.file_buffer.reserve(static_cast<std::size_t>(camera.width) * camera.height * 3);
+  }
+  {
+    std::lock_guard lock(mutex_);
+    slot_free_.fill(true);
+    ready_head_ = ready_count_ = 0;
+    held_slot_ = kPoolSlots;
+    reader_done_ = false;
+    stop_ = false;
+    counters_ = {};
+    warnings_.clear();
+  }
+  reader_ = std::thread([this] { reader_loop(); });
+  return {};
+}
+
+void ReplayDepthCamera::close() {
+  {
+    std::lock_guard lock(mutex_);
+    stop_ = true;
+  }
+  changed_.notify_all();
+  if (reader_.joinable()) reader_.join();
+}
+
+ReplayCounters ReplayDepthCamera::counters() const {
+  std::lock_guard lock(mutex_);
+  return counters_;
+}
+
+std::vector<std::string> ReplayDepthCamera::take_warnings() {
+  std::lock_guard lock(mutex_);
+  std::vector<std::string> taken;
+  taken.swap(warnings_);
+  return taken;
+}
+
+std::string ReplayDepthCamera::decode_into(std::uint32_t index, Slot& slot) {
+  const FrameEntry& entry = recording_.frames[index];
+  const auto& camera = recording_.calibration.rgb;
+  const auto frame_name = "frame " + std::to_string(index) + " (" + entry.rgb_file + ")";
+  const auto rgb_path = recording_.root / entry.rgb_file;
+  const auto depth_path = recording_.root / entry.depth_file;
+
+  if (!read_file(rgb_path, slot.file_buffer)) return rgb_path.string() + ": missing or unreadable, " + frame_name + " skipped";
+  if (!decode(slot.file_buffer, cv::IMREAD_COLOR, slot.frame.rgb)) {
+    return rgb_path.string() + ": not a decodable image, " + frame_name + " skipped";
+  }
+  if (slot.frame.rgb.cols != camera.width || slot.frame.rgb.rows != camera.height) {
+    return rgb_path.string() + ": " + std::to_string(slot.frame.rgb.cols) + "x" + std::to_string(slot.frame.rgb.rows) +
+           " but the calibration says " + std::to_string(camera.width) + "x" + std::to_string(camera.height) + ", " +
+           frame_name + " skipped";
+  }
+  if (!read_file(depth_path, slot.file_buffer)) {
+    return depth_path.string() + ": missing or unreadable, " + frame_name + " skipped";
+  }
+  if (!decode(slot.file_buffer, cv::IMREAD_ANYDEPTH, slot.frame.depth)) {
+    return depth_path.string() + ": not a decodable image, " + frame_name + " skipped";
+  }
+  if (slot.frame.depth.type() != CV_16UC1 || slot.frame.depth.size() != slot.frame.rgb.size()) {
+    return depth_path.string() + ": depth must be 16-bit single channel of the colour image's size, " + frame_name +
+           " skipped";
+  }
+  slot.frame.ir.release();
+  if (options_.load_ir && !entry.ir_file.empty()) {
+    const auto ir_path = recording_.root / entry.ir_file;
+    // A bad IR image costs the IR stream for this frame, not the frame.
+    if (!read_file(ir_path, slot.file_buffer) || !decode(slot.file_buffer, cv::IMREAD_GRAYSCALE, slot.frame.ir) ||
+        slot.frame.ir.size() != slot.frame.rgb.size()) {
+      slot.frame.ir.release();
+      std::lock_guard lock(mutex_);
+      warnings_.push_back(ir_path.string() + ": missing or undecodable IR image, " + frame_name + " has no IR");
+    }
+  }
+  slot.frame.sequence = index;
+  slot.frame.stamp_s = entry.rgb_stamp_s;
+  slot.frame.stamp_ns = static_cast<std::int64_t>(std::llround(entry.rgb_stamp_s * 1e9));
+  return {};
+}
+
+void ReplayDepthCamera::reader_loop() {
+  const auto start = std::chrono::steady_clock::now();
+  const double first_stamp_s = recording_.frames.front().rgb_stamp_s;
+  for (std::uint32_t index = 0; index < frame_count_; ++index) {
+    std::size_t slot_index = kPoolSlots;
+    {
+      std::unique_lock lock(mutex_);
+      if (options_.rate <= 0.0) {
+        changed_.wait(lock, [&] {
+          if (stop_) return true;
+          for (std::size_t i = 0; i < kPoolSlots; ++i) {
+            if (slot_free_[i]) return true;
+          }
+          return false;
+        });
+      }
+      if (stop_) break;
+      for (std::size_t i = 0; i < kPoolSlots && slot_index == kPoolSlots; ++i) {
+        if (slot_free_[i]) slot_index = i;
+      }
+      if (slot_index == kPoolSlots) {
+        // Paced replay with a slow consumer: overwrite the oldest undelivered frame.
+        slot_index = ready_[ready_head_];
+        ready_head_ = (ready_head_ + 1) % kPoolSlots;
+        --ready_count_;
+        ++counters_.dropped;
+      }
+      slot_free_[slot_index] = false;
+    }
+    Slot& slot = slots_[slot_index];
+    const std::string error = decode_into(index, slot);
+    if (options_.rate > 0.0) {
+      const double offset_s = (recording_.frames[index].rgb_stamp_s - first_stamp_s) / options_.rate;
+      const auto due = start + std::chrono::duration_cast<std::chrono::steady_clock::duration>(
+                                   std::chrono::duration<double>(offset_s));
+      std::unique_lock lock(mutex_);
+      changed_.wait_until(lock, due, [&] { return stop_; });
+    }
+    std::lock_guard lock(mutex_);
+    if (!error.empty()) {
+      ++counters_.corrupt;
+      warnings_.push_back(error);
+      slot_free_[slot_index] = true;
+      continue;
+    }
+    ready_[(ready_head_ + ready_count_) % kPoolSlots] = slot_index;
+    ++ready_count_;
+    changed_.notify_all();
+  }
+  std::lock_guard lock(mutex_);
+  reader_done_ = true;
+  changed_.notify_all();
+}
+
+hal::ReadStatus ReplayDepthCamera::read(hal::RgbdFrame& frame, std::chrono::milliseconds wait) {
+  std::unique_lock lock(mutex_);
+  if (held_slot_ != kPoolSlots) {
+    slot_free_[held_slot_] = true;
+    held_slot_ = kPoolSlots;
+    changed_.notify_all();
+  }
+  if (!changed_.wait_for(lock, wait, [&] { return ready_count_ > 0 || reader_done_ || stop_; })) {
+    return hal::ReadStatus::kTimeout;
+  }
+  if (ready_count_ == 0) return hal::ReadStatus::kEndOfStream;
+  held_slot_ = ready_[ready_head_];
+  ready_head_ = (ready_head_ + 1) % kPoolSlots;
+  --ready_count_;
+  frame = slots_[held_slot_].frame;
+  ++counters_.delivered;
+  return hal::ReadStatus::kOk;
+}
+
+}  // namespace rankslam::replay

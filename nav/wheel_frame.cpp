@@ -1,0 +1,42 @@
+#include "rankslam/nav/wheel_frame.hpp"
+
+namespace rankslam::nav {
+namespace {
+
+void put_u24(std::uint8_t* out, std::uint32_t value) {
+  out[0] = static_cast<std::uint8_t>(value & 0xFFU);
+  out[1] = static_cast<std::uint8_t>((value >> 8U) & 0xFFU);
+  out[2] = static_cast<std::uint8_t>((value >> 16U) & 0xFFU);
+}
+
+std::uint32_t get_u24(const std::uint8_t* in) {
+  return static_cast<std::uint32_t>(in[0]) | (static_cast<std::uint32_t>(in[1]) << 8U) |
+         (static_cast<std::uint32_t>(in[2]) << 16U);
+}
+
+}  // namespace
+
+hal::CanFrame encode_wheel_ticks(const WheelTicks& ticks, std::uint32_t can_id, std::int64_t stamp_ns) {
+  hal::CanFrame frame;
+  frame.stamp_ns = stamp_ns;
+  frame.id = can_id;
+  frame.length = kWheelTicksLength;
+  put_u24(&frame.data[0], ticks.left_ticks % kWheelTickModulus);
+  put_u24(&frame.data[3], ticks.right_ticks % kWheelTickModulus);
+  frame.data[6] = ticks.rolling_counter;
+  frame.data[7] = static_cast<std::uint8_t>((ticks.left_fault ? 1U : 0U) | (ticks.right_fault ? 2U : 0U));
+  return frame;
+}
+
+std::optional<WheelTicks> decode_wheel_ticks(const hal::CanFrame& frame) {
+  if (frame.length != kWheelTicksLength) return std::nullopt;
+  WheelTicks ticks;
+  ticks.left_ticks = get_u24(&frame.data[0]);
+  ticks.right_ticks = get_u24(&frame.data[3]);
+  ticks.rolling_counter = frame.data[6];
+  ticks.left_fault = (frame.data[7] & 1U) != 0;
+  ticks.right_fault = (frame.data[7] & 2U) != 0;
+  return ticks;
+}
+
+}  // namespace rankslam::nav

@@ -1,0 +1,107 @@
+#include "rankslam/replay/replay_camera.hpp"
+
+#include "recording_fixture.hpp"
+
+#include <gtest/gtest.h>
+
+#include <fstream>
+
+namespace rankslam::replay {
+namespace {
+
+namespace fs = std::filesystem;
+using std::chrono::milliseconds;
+
+std::vector<hal::RgbdFrame> replay_all(ReplayDepthCamera& camera) {
+  std::vector<hal::RgbdFrame> frames;
+  hal::RgbdFrame frame;
+  for (;;) {
+    const auto status = camera.read(frame, milliseconds(2000));
+    if (status == hal::ReadStatus::kEndOfStream) break;
+    EXPECT_EQ(status, hal::ReadStatus::kOk);
+    if (status != hal::ReadStatus::kOk) break;
+    hal::RgbdFrame copy = frame;
+    copy.rgb = frame.rgb.clone();
+    copy.depth = frame.depth.clone();
+    frames.push_back(copy);
+  }
+  return frames;
+}
+
+TEST(ReplayCamera, DeliversEveryFrameInOrderWithDecodedImages) {
+  const fs::path root = test::write_small_recording("rankslam_replay_order", 12, true, true);
+  Recording recording;
+  ASSERT_EQ(open_recording(root, recording), "");
+  ReplayDepthCamera camera(recording, {});
+  ASSERT_EQ(camera.open(), "");
+  const auto frames = replay_all(camera);
+  ASSERT_EQ(frames.size(), 12U);
+  for (std::size_t i = 0; i < frames.size(); ++i) {
+    EXPECT_EQ(frames[i].sequence, i);
+    EXPECT_EQ(frames[i].rgb.type(), CV_8UC3);
+    EXPECT_EQ(frames[i].depth.type(), CV_16UC1);
+    EXPECT_EQ(frames[i].depth.at<unsigned short>(0, 0), 5000 + i);
+    EXPECT_EQ(frames[i].rgb.at<cv::Vec3b>(0, 0)[2], 3 * i);
+  }
+  EXPECT_EQ(camera.counters().corrupt, 0U);
+  EXPECT_EQ(camera.counters().delivered, 12U);
+}
+
+TEST(ReplayCamera, CorruptAndMissingImagesAreSkippedCountedAndNamed) {
+  const fs::path root = test::write_small_recording("rankslam_replay_corrupt", 8, true, true);
+  Recording recording;
+  ASSERT_EQ(open_recording(root, recording), "");
+  // Truncate one colour image to garbage, delete one depth image.
+  const fs::path corrupt = root / recording.frames[2].rgb_file;
+  std::ofstream(corrupt, std::ios::trunc) << "\x89PNG this is not an image";
+  fs::remove(root / recording.frames[5].depth_file);
+  // A PNG cut short after its header: the signature is right, the data is not.
+  const fs::path truncated = root / recording.frames[6].rgb_file;
+  fs::resize_file(truncated, 60);
+
+  ReplayDepthCamera camera(recording, {});
+  ASSERT_EQ(camera.open(), "");
+  const auto frames = replay_all(camera);
+  EXPECT_EQ(frames.size(), 5U);
+  EXPECT_EQ(camera.counters().corrupt, 3U);
+  const auto warnings = camera.take_warnings();
+  ASSERT_EQ(warnings.size(), 3U);
+  EXPECT_NE(warnings[2].find(recording.frames[6].rgb_file), std::string::npos) << warnings[2];
+  EXPECT_NE(warnings[0].find(recording.frames[2].rgb_file), std::string::npos) << warnings[0];
+  EXPECT_NE(warnings[1].find(recording.frames[5].depth_file), std::string::npos) << warnings[1];
+  for (const auto& frame : frames) {
+    EXPECT_NE(frame.sequence, 2U);
+    EXPECT_NE(frame.sequence, 5U);
+    EXPECT_NE(frame.sequence, 6U);
+  }
+}
+
+TEST(ReplayCamera, WrongImageSizeIsSkippedNotCrashed) {
+  const fs::path root = test::write_small_recording("rankslam_replay_size", 3, true, true);
+  Recording recording;
+  ASSERT_EQ(open_recording(root, recording), "");
+  cv::imwrite((root / recording.frames[1].depth_file).string(), cv::Mat(10, 10, CV_16UC1, cv::Scalar(1)));
+  ReplayDepthCamera camera(recording, {});
+  ASSERT_EQ(camera.open(), "");
+  EXPECT_EQ(replay_all(camera).size(), 2U);
+  EXPECT_EQ(camera.counters().corrupt, 1U);
+}
+
+TEST(ReplayCamera, MaxFramesAndPacedReplay) {
+  const fs::path root = test::write_small_recording("rankslam_replay_rate", 10, true, true);
+  Recording recording;
+  ASSERT_EQ(open_recording(root, recording), "");
+  ReplayOptions options;
+  options.max_frames = 6;
+  options.rate = 4.0;  // 6 frames at 30 Hz / 4: about 40 ms in all
+  ReplayDepthCamera camera(recording, options);
+  ASSERT_EQ(camera.open(), "");
+  EXPECT_EQ(camera.frame_count(), 6U);
+  const auto frames = replay_all(camera);
+  const auto counters = camera.counters();
+  EXPECT_EQ(frames.size() + counters.dropped, 6U);
+  EXPECT_EQ(counters.corrupt, 0U);
+}
+
+}  // namespace
+}  // namespace rankslam::replay
