@@ -1,0 +1,47 @@
+#pragma once
+
+#include <cstdint>
+#include <filesystem>
+#include <string>
+
+namespace rankslam::app {
+
+struct ReplayArgs {
+  std::filesystem::path recording;  ///< Empty: simulate the built-in default scene first.
+  std::filesystem::path out;
+  std::string mode;
+  std::filesystem::path config;
+  double rate = 0.0;
+  std::uint32_t max_frames = 0;
+  bool quiet = false;
+};
+
+struct SimulateArgs {
+  std::string scene;
+  std::filesystem::path out;
+  int frames = 0;
+  std::uint64_t seed = 1;
+  bool motion_blur = false;
+};
+
+struct EvalArgs {
+  std::filesystem::path ground_truth;
+  std::filesystem::path estimate;
+  double max_difference_s = 0.02;
+  double delta_s = 1.0;
+};
+
+struct RunArgs {
+  std::filesystem::path config;
+  std::filesystem::path out;
+};
+
+[[nodiscard]] int run_replay(const ReplayArgs& args);
+[[nodiscard]] int run_simulate(const SimulateArgs& args);
+[[nodiscard]] int run_eval(const EvalArgs& args);
+[[nodiscard]] int run_live(const RunArgs& args);
+
+/// The scene `rankslam replay` simulates when given no recording.
+inline constexpr const char* kDefaultScene = "office";
+
+}  // namespace rankslam::app

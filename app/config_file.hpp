@@ -1,0 +1,20 @@
+#pragma once
+
+#include "rankslam/slam/config.hpp"
+
+#include <filesystem>
+#include <string>
+
+namespace rankslam::app {
+
+/// Overrides `config` with the `slam:` section of a YAML file. Unknown keys and out-of-range
+/// values are errors naming the file and the key. Empty string on success.
+[[nodiscard]] std::string load_slam_config(const std::filesystem::path& path, slam::SlamConfig& config);
+
+/// Every effective parameter, one "slam.name = value unit  # doc" line each.
+[[nodiscard]] std::string describe_slam_config(slam::SlamConfig config);
+
+/// Parameters as a JSON object body ("name": value, ...), for the report.
+[[nodiscard]] std::string slam_config_json(slam::SlamConfig config);
+
+}  // namespace rankslam::app

@@ -1,0 +1,76 @@
+// rankslam command line: builds the parts each subcommand needs and runs it. No algorithm here.
+#include "commands.hpp"
+#include "exit_codes.hpp"
+
+#include "rankslam/sim/simulator.hpp"
+
+#include <CLI/CLI.hpp>
+
+#include <exception>
+#include <iostream>
+
+int main(int argc, char** argv) {
+  using namespace rankslam::app;
+  CLI::App app{"rankslam: RGB-D SLAM for robots in texture-less, structure-less and dark places"};
+  app.require_subcommand(1);
+  app.set_version_flag("--version", "rankslam " RANKSLAM_VERSION);
+
+  ReplayArgs replay;
+  auto* replay_cmd = app.add_subcommand("replay", "Run the SLAM loop over a recording and write trajectory, map, plot and report");
+  replay_cmd->add_option("recording", replay.recording,
+                         "Recording directory (TUM RGB-D layout); without it the built-in default scene is simulated and replayed")
+      ->check(CLI::ExistingDirectory);
+  replay_cmd->add_option("--out,-o", replay.out, "Output directory")->required();
+  replay_cmd->add_option("--mode,-m", replay.mode, "Registration: baseline, photometric, geometric or fused (default: best implemented)");
+  replay_cmd->add_option("--config,-c", replay.config, "YAML configuration (see deploy/config/default.yaml)")->check(CLI::ExistingFile);
+  replay_cmd->add_option("--rate", replay.rate, "Play at this multiple of the recorded rate, dropping frames the loop cannot keep up with (0 = as fast as possible, lossless)")
+      ->check(CLI::NonNegativeNumber);
+  replay_cmd->add_option("--max-frames", replay.max_frames, "Replay at most this many frames (0 = all)");
+  replay_cmd->add_flag("--quiet,-q", replay.quiet, "Print only the summary");
+
+  SimulateArgs simulate;
+  std::string scenes;
+  for (const auto& name : rankslam::sim::scene_names()) scenes += "\n  " + name + ": " + rankslam::sim::scene_description(name);
+  auto* simulate_cmd = app.add_subcommand("simulate", "Write a deterministic synthetic recording with exact ground truth. Scenes:" + scenes);
+  simulate_cmd->add_option("scene", simulate.scene, "Scene name")->required()->check(CLI::IsMember(rankslam::sim::scene_names()));
+  simulate_cmd->add_option("--out,-o", simulate.out, "Output recording directory (absent or empty)")->required();
+  simulate_cmd->add_option("--frames,-n", simulate.frames, "Number of RGB-D frames (0 = the scene's default)")->check(CLI::NonNegativeNumber);
+  simulate_cmd->add_option("--seed,-s", simulate.seed, "Random seed; equal seeds give byte-identical recordings");
+  simulate_cmd->add_flag("--motion-blur", simulate.motion_blur, "Blur images by the camera motion during exposure");
+
+  EvalArgs eval;
+  auto* eval_cmd = app.add_subcommand("eval", "TUM absolute trajectory error and relative pose error of EST against GT");
+  eval_cmd->add_option("ground_truth", eval.ground_truth, "Ground-truth trajectory (TUM format)")->required()->check(CLI::ExistingFile);
+  eval_cmd->add_option("estimate", eval.estimate, "Estimated trajectory (TUM format)")->required()->check(CLI::ExistingFile);
+  eval_cmd->add_option("--max-difference", eval.max_difference_s, "Largest stamp difference of associated poses, s")->check(CLI::PositiveNumber);
+  eval_cmd->add_option("--delta", eval.delta_s, "RPE interval, s")->check(CLI::PositiveNumber);
+
+  RunArgs run;
+  auto* run_cmd = app.add_subcommand("run", "Run live on the robot: sensors in, pose out over CAN");
+  run_cmd->add_option("--config,-c", run.config, "Robot configuration (deploy/config/<robot>.yaml)")->required()->check(CLI::ExistingFile);
+  run_cmd->add_option("--out,-o", run.out, "Where trajectory and map are flushed on exit");
+
+  try {
+    app.parse(argc, argv);
+  } catch (const CLI::CallForHelp& e) {
+    return app.exit(e);
+  } catch (const CLI::CallForAllHelp& e) {
+    return app.exit(e);
+  } catch (const CLI::CallForVersion& e) {
+    return app.exit(e);
+  } catch (const CLI::ParseError& e) {
+    (void)app.exit(e);
+    return kExitUsage;
+  }
+
+  try {
+    if (replay_cmd->parsed()) return run_replay(replay);
+    if (simulate_cmd->parsed()) return run_simulate(simulate);
+    if (eval_cmd->parsed()) return run_eval(eval);
+    if (run_cmd->parsed()) return run_live(run);
+  } catch (const std::exception& error) {
+    std::cerr << "internal error: " << error.what() << "\n";
+    return kExitInternal;
+  }
+  return kExitUsage;
+}

@@ -1,0 +1,248 @@
+#include "commands.hpp"
+#include "config_file.hpp"
+#include "exit_codes.hpp"
+#include "json_writer.hpp"
+#include "progress.hpp"
+
+#include "rankslam/eval/metrics.hpp"
+#include "rankslam/eval/plot.hpp"
+#include "rankslam/eval/trajectory.hpp"
+#include "rankslam/hal/atomic_file.hpp"
+#include "rankslam/replay/replay_camera.hpp"
+#include "rankslam/slam/slam_loop.hpp"
+
+#include <algorithm>
+#include <atomic>
+#include <csignal>
+#include <cstdio>
+#include <iostream>
+#include <optional>
+#include <vector>
+
+namespace rankslam::app {
+namespace {
+
+std::atomic<bool> g_stop_requested{false};
+
+extern "C" void request_stop(int /*signal*/) { g_stop_requested.store(true); }
+
+struct Percentiles {
+  double median = 0.0;
+  double p90 = 0.0;
+  double max = 0.0;
+};
+
+Percentiles percentiles(std::vector<double> values) {
+  Percentiles result;
+  if (values.empty()) return result;
+  std::sort(values.begin(), values.end());
+  const auto at = [&](double q) { return values[static_cast<std::size_t>(q * static_cast<double>(values.size() - 1) + 0.5)]; };
+  result.median = at(0.5);
+  result.p90 = at(0.9);
+  result.max = values.back();
+  return result;
+}
+
+void write_percentiles(JsonWriter& json, std::string_view key, const Percentiles& p) {
+  json.begin_object(key).number("median", p.median).number("p90", p.p90).number("max", p.max).end_object();
+}
+
+std::optional<slam::Mode> parse_mode(const std::string& name) {
+  for (const auto mode : {slam::Mode::kBaseline, slam::Mode::kPhotometric, slam::Mode::kGeometric, slam::Mode::kFused}) {
+    if (name == slam::to_string(mode)) return mode;
+  }
+  return std::nullopt;
+}
+
+bool mode_implemented(slam::Mode mode) { return mode == slam::Mode::kBaseline || mode == slam::Mode::kPhotometric; }
+
+}  // namespace
+
+int run_replay(const ReplayArgs& args) {
+  namespace fs = std::filesystem;
+  slam::SlamConfig config;
+  if (!args.config.empty()) {
+    if (auto error = load_slam_config(args.config, config); !error.empty()) {
+      std::cerr << "error: " << error << "\n";
+      return kExitInput;
+    }
+  }
+  if (!args.mode.empty()) {
+    const auto mode = parse_mode(args.mode);
+    if (!mode) {
+      std::cerr << "error: unknown mode '" << args.mode << "' (baseline, photometric, geometric, fused)\n";
+      return kExitUsage;
+    }
+    config.mode = *mode;
+  }
+  if (!mode_implemented(config.mode)) {
+    std::cerr << "error: mode '" << slam::to_string(config.mode) << "' is not implemented yet\n";
+    return kExitNotAvailable;
+  }
+
+  std::error_code ec;
+  fs::create_directories(args.out, ec);
+  if (!fs::is_directory(args.out)) {
+    std::cerr << "error: cannot create output directory " << args.out << ": " << ec.message() << "\n";
+    return kExitOutput;
+  }
+
+  fs::path recording_dir = args.recording;
+  if (recording_dir.empty()) {
+    recording_dir = args.out / "recording";
+    if (!args.quiet) std::cout << "no recording given: simulating the '" << kDefaultScene << "' scene into " << recording_dir << "\n";
+    fs::remove_all(recording_dir, ec);
+    SimulateArgs simulate;
+    simulate.scene = kDefaultScene;
+    simulate.out = recording_dir;
+    if (const int code = run_simulate(simulate); code != kExitOk) return code;
+  }
+
+  replay::Recording recording;
+  if (auto error = replay::open_recording(recording_dir, recording); !error.empty()) {
+    std::cerr << "error: " << error << "\n";
+    return kExitInput;
+  }
+  for (const auto& warning : recording.warnings) std::cerr << "warning: " << warning << "\n";
+
+  replay::ReplayOptions options;
+  options.rate = args.rate;
+  options.max_frames = args.max_frames;
+  replay::ReplayDepthCamera camera(recording, options);
+  if (auto error = camera.open(); !error.empty()) {
+    std::cerr << "error: " << error << "\n";
+    return kExitInput;
+  }
+  if (!args.quiet) {
+    std::cout << "recording " << recording.root.string() << ": " << camera.frame_count() << " frames, calibration "
+              << recording.calibration.source << "\n"
+              << describe_slam_config(config);
+  }
+
+  slam::SlamLoop loop(config, recording.calibration);
+  eval::Trajectory estimate;
+  estimate.reserve(camera.frame_count());
+  std::vector<double> frame_ms;
+  frame_ms.reserve(camera.frame_count());
+  std::array<std::vector<double>, slam::StageTimes::kCount> stage_ms;
+  for (auto& stage : stage_ms) stage.reserve(camera.frame_count());
+  int failed_frames = 0;
+
+  g_stop_requested = false;
+  std::signal(SIGINT, request_stop);
+  std::signal(SIGTERM, request_stop);
+  ProgressLine progress(camera.frame_count());
+  hal::RgbdFrame frame;
+  bool interrupted = false;
+  for (;;) {
+    if (g_stop_requested) {
+      interrupted = true;
+      break;
+    }
+    const hal::ReadStatus status = camera.read(frame, std::chrono::milliseconds(1000));
+    for (const auto& warning : camera.take_warnings()) std::cerr << "\nwarning: " << warning << "\n";
+    if (status == hal::ReadStatus::kEndOfStream) break;
+    if (status != hal::ReadStatus::kOk) continue;
+    const auto start = std::chrono::steady_clock::now();
+    const slam::FrameResult result = loop.process(frame);
+    frame_ms.push_back(std::chrono::duration<double, std::milli>(std::chrono::steady_clock::now() - start).count());
+    for (std::size_t i = 0; i < slam::StageTimes::kCount; ++i) stage_ms[i].push_back(result.times.ms[i]);
+    if (result.status == slam::FrameStatus::kFailed) ++failed_frames;
+    estimate.push_back({frame.stamp_s, result.T_world_cam});
+    progress.update(static_cast<unsigned>(estimate.size()));
+  }
+  progress.finish();
+  const replay::ReplayCounters counters = camera.counters();
+  for (const auto& warning : camera.take_warnings()) std::cerr << "warning: " << warning << "\n";
+  camera.close();
+  std::signal(SIGINT, SIG_DFL);
+  std::signal(SIGTERM, SIG_DFL);
+
+  // Outputs: each written atomically, so an interrupted or failed run never leaves half a file.
+  int exit_code = interrupted ? kExitInterrupted : kExitOk;
+  const auto report_error = [&](const std::string& error) {
+    if (error.empty()) return;
+    std::cerr << "error: " << error << "\n";
+    exit_code = kExitOutput;
+  };
+  report_error(eval::write_tum_trajectory(args.out / "trajectory.txt", estimate));
+  report_error(hal::write_file_atomically(args.out / "map.ply", loop.map().to_ply()));
+
+  std::optional<eval::EvalResult> accuracy;
+  std::optional<eval::Trajectory> ground_truth;
+  if (recording.ground_truth) {
+    auto gt = eval::read_tum_trajectory(*recording.ground_truth);
+    if (!gt) {
+      std::cerr << "warning: " << gt.error() << "; no accuracy computed\n";
+    } else {
+      ground_truth = std::move(gt).value();
+      auto evaluated = eval::evaluate(*ground_truth, estimate);
+      if (evaluated) {
+        accuracy = std::move(evaluated).value();
+      } else {
+        std::cerr << "warning: " << evaluated.error() << "; no accuracy computed\n";
+      }
+    }
+  }
+  {
+    eval::TopViewOptions plot_options;
+    plot_options.title = recording.root.filename().string() + "  (" + std::string(slam::to_string(config.mode)) + ")";
+    if (accuracy) plot_options.ate_rmse_m = accuracy->ate.translation_m.rmse;
+    const cv::Mat plot = eval::render_top_view(estimate, ground_truth ? &*ground_truth : nullptr, plot_options);
+    report_error(eval::write_png(args.out / "trajectory.png", plot));
+  }
+
+  JsonWriter json;
+  json.begin_object();
+  json.string("recording", recording.root.string());
+  json.string("mode", slam::to_string(config.mode));
+  json.integer("frames", static_cast<long long>(estimate.size()));
+  json.integer("failed_frames", failed_frames);
+  json.integer("skipped_frames", counters.corrupt);
+  json.integer("dropped_frames", counters.dropped);
+  json.integer("keyframes", loop.keyframes());
+  json.integer("map_points", static_cast<long long>(loop.map().size()));
+  json.boolean("interrupted", interrupted);
+  if (accuracy) {
+    json.number("ate_rmse_m", accuracy->ate.translation_m.rmse);
+    json.number("ate_mean_m", accuracy->ate.translation_m.mean);
+    json.number("ate_median_m", accuracy->ate.translation_m.median);
+    json.number("ate_max_m", accuracy->ate.translation_m.max);
+    if (accuracy->rpe) {
+      json.number("rpe_trans_m_per_s", accuracy->rpe->translation_m_per_s.rmse);
+      json.number("rpe_rot_deg_per_s", accuracy->rpe->rotation_deg_per_s.rmse);
+    } else {
+      json.null("rpe_trans_m_per_s").null("rpe_rot_deg_per_s");
+    }
+  } else {
+    json.null("ate_rmse_m").null("rpe_trans_m_per_s").null("rpe_rot_deg_per_s");
+  }
+  write_percentiles(json, "frame_ms", percentiles(frame_ms));
+  json.begin_object("stage_ms");
+  for (std::size_t i = 0; i < slam::StageTimes::kCount; ++i) {
+    write_percentiles(json, slam::StageTimes::kNames[i], percentiles(stage_ms[i]));
+  }
+  json.end_object();
+  json.string("calibration", recording.calibration.source);
+  json.raw_object("config", slam_config_json(config));
+  json.end_object();
+  report_error(hal::write_file_atomically(args.out / "report.json", json.str()));
+
+  const Percentiles timing = percentiles(frame_ms);
+  std::printf("frames %zu  failed %d  skipped %u  median %.1f ms/frame\n", estimate.size(), failed_frames,
+              counters.corrupt, timing.median);
+  if (accuracy) {
+    std::printf("ATE RMSE %.4f m", accuracy->ate.translation_m.rmse);
+    if (accuracy->rpe) {
+      std::printf("  RPE %.4f m/s %.3f deg/s", accuracy->rpe->translation_m_per_s.rmse,
+                  accuracy->rpe->rotation_deg_per_s.rmse);
+    }
+    std::printf("\n");
+  } else {
+    std::printf("ATE n/a (no ground truth)\n");
+  }
+  std::printf("outputs in %s\n", args.out.string().c_str());
+  return exit_code;
+}
+
+}  // namespace rankslam::app

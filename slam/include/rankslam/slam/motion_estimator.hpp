@@ -1,0 +1,42 @@
+#pragma once
+
+#include "rankslam/slam/config.hpp"
+
+#include <Eigen/Geometry>
+
+#include <memory>
+#include <span>
+#include <string_view>
+
+namespace rankslam::slam {
+
+struct MotionEstimate {
+  bool ok = false;
+  /// Maps source points onto target points.
+  Eigen::Isometry3d T_target_source = Eigen::Isometry3d::Identity();
+  int inliers = 0;
+  std::string_view failure_reason;
+};
+
+/// Robust rigid 3D–3D estimation for the configured mode: fixed-threshold RANSAC for the
+/// baseline, MSSE otherwise. Workspaces are sized at construction.
+class MotionEstimator {
+ public:
+  MotionEstimator(const SlamConfig& config, std::size_t max_points);
+  ~MotionEstimator();
+  MotionEstimator(const MotionEstimator&) = delete;
+  MotionEstimator& operator=(const MotionEstimator&) = delete;
+
+  /// `sigma_m`, when not empty, is each correspondence's predicted residual noise; MSSE then
+  /// ranks and segments residuals in units of their own noise. RANSAC ignores it: its fixed
+  /// metric threshold is what the baseline stands for.
+  [[nodiscard]] MotionEstimate estimate(std::span<const Eigen::Vector3f> source,
+                                        std::span<const Eigen::Vector3f> target,
+                                        std::span<const double> sigma_m = {});
+
+ private:
+  struct Impl;
+  std::unique_ptr<Impl> impl_;
+};
+
+}  // namespace rankslam::slam

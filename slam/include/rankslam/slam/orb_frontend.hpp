@@ -1,0 +1,68 @@
+#pragma once
+
+#include "rankslam/slam/camera.hpp"
+#include "rankslam/slam/config.hpp"
+
+#include <Eigen/Core>
+#include <opencv2/core/mat.hpp>
+#include <opencv2/features2d.hpp>
+
+#include <cstdint>
+#include <vector>
+
+namespace rankslam::slam {
+
+/// ORB features of one frame that have valid depth, with their camera-frame 3D points.
+struct PhotometricFeatures {
+  std::vector<cv::KeyPoint> keypoints;
+  cv::Mat descriptors;  ///< CV_8UC1, one 32-byte row per keypoint.
+  std::vector<Eigen::Vector3f> points_cam;
+  /// Predicted standard deviation of each point's position, metres: Kinect depth noise
+  /// (σ_z = a·z², Khoshelham & Elberink 2012) combined with the keypoint's localisation error,
+  /// which grows with its pyramid level.
+  std::vector<float> sigma_m;
+
+  [[nodiscard]] std::size_t size() const { return points_cam.size(); }
+};
+
+/// A mutual (cross-checked) descriptor match: `source` indexes the earlier frame.
+struct FeatureMatch {
+  std::uint32_t source = 0;
+  std::uint32_t target = 0;
+  std::uint32_t distance = 0;
+};
+
+/// Extracts ORB features and keeps those with depth in range (ALGORITHMS.md §2).
+class OrbFrontend {
+ public:
+  OrbFrontend(const SlamConfig& config, const DepthCameraModel& camera);
+
+  /// `gray` is the image features are detected on; `depth` the registered raw depth.
+  void extract(const cv::Mat& gray, const cv::Mat& depth, PhotometricFeatures& features);
+
+ private:
+  const DepthCameraModel& camera_;
+  float min_depth_m_;
+  float max_depth_m_;
+  float depth_noise_per_m_;
+  float keypoint_sigma_px_;
+  float scale_factor_;
+  cv::Ptr<cv::ORB> orb_;
+  std::vector<cv::KeyPoint> all_keypoints_;
+  cv::Mat all_descriptors_;
+};
+
+/// Mutual nearest-neighbour matching by Hamming distance: i and j match when each is the
+/// other's closest descriptor and the distance is at most `max_distance`. One pass over the
+/// distance matrix finds both directions' minima.
+class MutualHammingMatcher {
+ public:
+  void match(const cv::Mat& source, const cv::Mat& target, int max_distance, std::vector<FeatureMatch>& matches);
+
+ private:
+  std::vector<std::uint32_t> best_source_for_target_;
+  std::vector<std::uint32_t> best_distance_for_target_;
+  std::vector<std::uint32_t> scratch_best_target_;
+};
+
+}  // namespace rankslam::slam

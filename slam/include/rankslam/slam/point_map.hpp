@@ -1,0 +1,48 @@
+#pragma once
+
+#include <Eigen/Core>
+
+#include <cstdint>
+#include <string>
+#include <vector>
+
+namespace rankslam::slam {
+
+/// Coloured point cloud merged on a voxel grid, with a capacity fixed at construction: points
+/// falling in an occupied voxel refine its mean; points that would need a new voxel once the
+/// map is full are counted and dropped, so memory never grows after set-up.
+class PointMap {
+ public:
+  PointMap(double voxel_m, std::size_t max_points);
+
+  /// Adds a world-frame point with its BGR colour.
+  void insert(const Eigen::Vector3f& point_world, std::uint8_t blue, std::uint8_t green, std::uint8_t red);
+  void clear();
+
+  [[nodiscard]] std::size_t size() const { return used_; }
+  [[nodiscard]] std::size_t capacity() const { return max_points_; }
+  [[nodiscard]] std::uint64_t rejected_points() const { return rejected_; }
+
+  /// The map as a binary little-endian PLY (x y z float, red green blue uchar).
+  [[nodiscard]] std::string to_ply() const;
+
+ private:
+  struct Voxel {
+    std::int64_t key = kEmpty;
+    Eigen::Vector3f sum = Eigen::Vector3f::Zero();
+    std::uint32_t blue_sum = 0;
+    std::uint32_t green_sum = 0;
+    std::uint32_t red_sum = 0;
+    std::uint32_t count = 0;
+  };
+  static constexpr std::int64_t kEmpty = INT64_MIN;
+
+  float inverse_voxel_m_;
+  std::size_t max_points_;
+  std::size_t mask_;
+  std::vector<Voxel> table_;
+  std::size_t used_ = 0;
+  std::uint64_t rejected_ = 0;
+};
+
+}  // namespace rankslam::slam

@@ -1,0 +1,100 @@
+#include "rankslam/slam/orb_frontend.hpp"
+
+#include <algorithm>
+#include <bit>
+#include <cmath>
+#include <cstring>
+#include <limits>
+
+namespace rankslam::slam {
+
+OrbFrontend::OrbFrontend(const SlamConfig& config, const DepthCameraModel& camera)
+    : camera_(camera),
+      min_depth_m_(static_cast<float>(config.min_depth_m)),
+      max_depth_m_(static_cast<float>(config.max_depth_m)),
+      depth_noise_per_m_(static_cast<float>(config.depth_noise_per_m)),
+      keypoint_sigma_px_(static_cast<float>(config.keypoint_sigma_px)),
+      scale_factor_(static_cast<float>(config.orb_scale_factor)),
+      orb_(cv::ORB::create(config.orb_features, static_cast<float>(config.orb_scale_factor), config.orb_levels, 31, 0, 2,
+                           cv::ORB::HARRIS_SCORE, 31, config.orb_fast_threshold)) {
+  all_keypoints_.reserve(static_cast<std::size_t>(config.orb_features) * 2);
+}
+
+void OrbFrontend::extract(const cv::Mat& gray, const cv::Mat& depth, PhotometricFeatures& features) {
+  all_keypoints_.clear();
+  orb_->detectAndCompute(gray, cv::noArray(), all_keypoints_, all_descriptors_);
+  features.keypoints.clear();
+  features.points_cam.clear();
+  features.sigma_m.clear();
+  features.descriptors.create(static_cast<int>(all_keypoints_.size()), 32, CV_8UC1);
+  int kept = 0;
+  for (std::size_t i = 0; i < all_keypoints_.size(); ++i) {
+    const cv::KeyPoint& keypoint = all_keypoints_[i];
+    const int u = static_cast<int>(std::lround(keypoint.pt.x));
+    const int v = static_cast<int>(std::lround(keypoint.pt.y));
+    if (u < 0 || v < 0 || u >= camera_.width() || v >= camera_.height()) continue;
+    const unsigned short raw = depth.at<unsigned short>(v, u);
+    if (raw == 0) continue;
+    const float z_m = camera_.metres(raw);
+    if (z_m < min_depth_m_ || z_m > max_depth_m_) continue;
+    features.keypoints.push_back(keypoint);
+    // The ray comes from the sub-pixel keypoint position; depth from its nearest pixel.
+    const float x = std::clamp(keypoint.pt.x, 0.0F, static_cast<float>(camera_.width() - 1));
+    const float y = std::clamp(keypoint.pt.y, 0.0F, static_cast<float>(camera_.height() - 1));
+    const Eigen::Vector2f ray = camera_.ray(x, y);
+    features.points_cam.emplace_back(ray.x() * z_m, ray.y() * z_m, z_m);
+    const float axial_m = depth_noise_per_m_ * z_m * z_m;
+    const float lateral_m = keypoint_sigma_px_ * std::pow(scale_factor_, static_cast<float>(keypoint.octave)) * z_m /
+                            static_cast<float>(camera_.calibration().fx);
+    features.sigma_m.push_back(std::sqrt(axial_m * axial_m + 2.0F * lateral_m * lateral_m));
+    std::memcpy(features.descriptors.ptr(kept), all_descriptors_.ptr(static_cast<int>(i)), 32);
+    ++kept;
+  }
+  // Shrinking the header keeps the allocation for the next frame.
+  features.descriptors = features.descriptors.rowRange(0, kept);
+}
+
+void MutualHammingMatcher::match(const cv::Mat& source, const cv::Mat& target, int max_distance,
+                                 std::vector<FeatureMatch>& matches) {
+  matches.clear();
+  const int n_source = source.rows;
+  const int n_target = target.rows;
+  if (n_source == 0 || n_target == 0) return;
+  constexpr std::uint32_t kNone = std::numeric_limits<std::uint32_t>::max();
+  best_source_for_target_.assign(static_cast<std::size_t>(n_target), kNone);
+  best_distance_for_target_.assign(static_cast<std::size_t>(n_target), kNone);
+
+  // Row minima give source->target; the column minima, kept on the way, give target->source.
+  std::vector<std::uint32_t>& best_target_for_source = scratch_best_target_;
+  best_target_for_source.assign(static_cast<std::size_t>(n_source), kNone);
+  for (int i = 0; i < n_source; ++i) {
+    std::uint64_t a[4];
+    std::memcpy(a, source.ptr(i), 32);
+    std::uint32_t best = kNone;
+    std::uint32_t best_j = kNone;
+    for (int j = 0; j < n_target; ++j) {
+      std::uint64_t b[4];
+      std::memcpy(b, target.ptr(j), 32);
+      const auto distance = static_cast<std::uint32_t>(std::popcount(a[0] ^ b[0]) + std::popcount(a[1] ^ b[1]) +
+                                                       std::popcount(a[2] ^ b[2]) + std::popcount(a[3] ^ b[3]));
+      if (distance < best) {
+        best = distance;
+        best_j = static_cast<std::uint32_t>(j);
+      }
+      const auto column = static_cast<std::size_t>(j);
+      if (distance < best_distance_for_target_[column]) {
+        best_distance_for_target_[column] = distance;
+        best_source_for_target_[column] = static_cast<std::uint32_t>(i);
+      }
+    }
+    best_target_for_source[static_cast<std::size_t>(i)] = best_j;
+  }
+  for (int i = 0; i < n_source; ++i) {
+    const std::uint32_t j = best_target_for_source[static_cast<std::size_t>(i)];
+    if (j == kNone || best_source_for_target_[j] != static_cast<std::uint32_t>(i)) continue;
+    if (best_distance_for_target_[j] > static_cast<std::uint32_t>(max_distance)) continue;
+    matches.push_back({static_cast<std::uint32_t>(i), j, best_distance_for_target_[j]});
+  }
+}
+
+}  // namespace rankslam::slam

@@ -1,0 +1,94 @@
+#include "rankslam/slam/point_map.hpp"
+
+#include <bit>
+#include <cmath>
+#include <cstring>
+
+namespace rankslam::slam {
+namespace {
+
+// 21 bits per axis: ±1 048 575 voxels, ±21 km at 2 cm.
+std::int64_t pack(std::int64_t x, std::int64_t y, std::int64_t z) {
+  constexpr std::int64_t kMask = (1LL << 21) - 1;
+  return ((x & kMask) << 42) | ((y & kMask) << 21) | (z & kMask);
+}
+
+std::size_t hash(std::int64_t key) {
+  auto h = static_cast<std::uint64_t>(key);
+  h ^= h >> 33U;
+  h *= 0xff51afd7ed558ccdULL;
+  h ^= h >> 33U;
+  return static_cast<std::size_t>(h);
+}
+
+}  // namespace
+
+PointMap::PointMap(double voxel_m, std::size_t max_points)
+    : inverse_voxel_m_(static_cast<float>(1.0 / voxel_m)),
+      max_points_(max_points),
+      // A load factor of at most one half keeps linear probing short.
+      mask_(std::bit_ceil(max_points * 2) - 1),
+      table_(mask_ + 1) {}
+
+void PointMap::clear() {
+  for (auto& voxel : table_) voxel = Voxel{};
+  used_ = 0;
+  rejected_ = 0;
+}
+
+void PointMap::insert(const Eigen::Vector3f& point_world, std::uint8_t blue, std::uint8_t green, std::uint8_t red) {
+  if (!point_world.allFinite()) return;
+  const Eigen::Vector3f scaled = point_world * inverse_voxel_m_;
+  const std::int64_t key = pack(static_cast<std::int64_t>(std::floor(scaled.x())),
+                                static_cast<std::int64_t>(std::floor(scaled.y())),
+                                static_cast<std::int64_t>(std::floor(scaled.z())));
+  for (std::size_t slot = hash(key) & mask_;; slot = (slot + 1) & mask_) {
+    Voxel& voxel = table_[slot];
+    if (voxel.key == key) {
+      voxel.sum += point_world;
+      voxel.blue_sum += blue;
+      voxel.green_sum += green;
+      voxel.red_sum += red;
+      ++voxel.count;
+      return;
+    }
+    if (voxel.key == kEmpty) {
+      if (used_ >= max_points_) {
+        ++rejected_;
+        return;
+      }
+      voxel.key = key;
+      voxel.sum = point_world;
+      voxel.blue_sum = blue;
+      voxel.green_sum = green;
+      voxel.red_sum = red;
+      voxel.count = 1;
+      ++used_;
+      return;
+    }
+  }
+}
+
+std::string PointMap::to_ply() const {
+  std::string header = "ply\nformat binary_little_endian 1.0\ncomment rankslam map\nelement vertex " +
+                       std::to_string(used_) +
+                       "\nproperty float x\nproperty float y\nproperty float z\n"
+                       "property uchar red\nproperty uchar green\nproperty uchar blue\nend_header\n";
+  constexpr std::size_t kVertexBytes = 3 * sizeof(float) + 3;
+  std::string ply = std::move(header);
+  std::size_t offset = ply.size();
+  ply.resize(offset + used_ * kVertexBytes);
+  static_assert(std::endian::native == std::endian::little, "PLY output assumes a little-endian host");
+  for (const auto& voxel : table_) {
+    if (voxel.key == kEmpty) continue;
+    const Eigen::Vector3f mean = voxel.sum / static_cast<float>(voxel.count);
+    std::memcpy(&ply[offset], mean.data(), 3 * sizeof(float));
+    ply[offset + 12] = static_cast<char>(voxel.red_sum / voxel.count);
+    ply[offset + 13] = static_cast<char>(voxel.green_sum / voxel.count);
+    ply[offset + 14] = static_cast<char>(voxel.blue_sum / voxel.count);
+    offset += kVertexBytes;
+  }
+  return ply;
+}
+
+}  // namespace rankslam::slam

@@ -1,0 +1,194 @@
+// Runs the rankslam executable as a user would and checks exit codes and outputs.
+#include "rankslam/eval/trajectory.hpp"
+
+#include <gtest/gtest.h>
+
+#include <sys/wait.h>
+
+#include <array>
+#include <cstdio>
+#include <filesystem>
+#include <fstream>
+#include <sstream>
+#include <string>
+
+namespace {
+
+namespace fs = std::filesystem;
+
+struct CommandResult {
+  int exit_code = -1;
+  std::string output;  // stdout and stderr together
+};
+
+CommandResult run(const std::string& arguments) {
+  const std::string command = std::string(RANKSLAM_EXE) + " " + arguments + " 2>&1";
+  CommandResult result;
+  FILE* pipe = ::popen(command.c_str(), "r");
+  if (pipe == nullptr) return result;
+  std::array<char, 4096> buffer{};
+  while (std::fgets(buffer.data(), buffer.size(), pipe) != nullptr) result.output += buffer.data();
+  const int status = ::pclose(pipe);
+  result.exit_code = WIFEXITED(status) ? WEXITSTATUS(status) : -1;
+  return result;
+}
+
+std::string slurp(const fs::path& path) {
+  std::ifstream in(path, std::ios::binary);
+  std::stringstream text;
+  text << in.rdbuf();
+  return text.str();
+}
+
+fs::path shared_data() { return fs::path(RANKSLAM_SHARED_DATA); }
+
+fs::path fresh_dir(const std::string& name) {
+  const fs::path dir = fs::temp_directory_path() / name;
+  fs::remove_all(dir);
+  return dir;
+}
+
+TEST(Cli, HelpForEverySubcommand) {
+  for (const char* sub : {"", "replay", "simulate", "eval", "run"}) {
+    const auto result = run(std::string(sub) + " --help");
+    EXPECT_EQ(result.exit_code, 0) << sub << "\n" << result.output;
+    EXPECT_NE(result.output.find("Usage"), std::string::npos) << sub;
+  }
+}
+
+TEST(Cli, UsageErrorsExitWithTwo) {
+  EXPECT_EQ(run("").exit_code, 2);
+  EXPECT_EQ(run("replay").exit_code, 2);  // --out is required
+  EXPECT_EQ(run("simulate no-such-scene --out /tmp/x").exit_code, 2);
+  EXPECT_EQ(run("frobnicate").exit_code, 2);
+}
+
+TEST(Cli, EvalOfTheFixtureGivesTheBenchmarkAte) {
+  const fs::path gt = shared_data() / "trajectories/freiburg1_xyz-groundtruth.txt";
+  const fs::path est = shared_data() / "trajectories/freiburg1_xyz-rgbdslam.txt";
+  if (!fs::exists(gt)) GTEST_SKIP() << "shared data not found at " << shared_data() << ": fixture test skipped";
+  const auto result = run("eval " + gt.string() + " " + est.string());
+  ASSERT_EQ(result.exit_code, 0) << result.output;
+  EXPECT_NE(result.output.find("ate.rmse_m"), std::string::npos) << result.output;
+  EXPECT_NE(result.output.find("0.0135"), std::string::npos) << result.output;
+}
+
+TEST(Cli, EvalOfAMalformedTrajectoryNamesFileAndLine) {
+  const fs::path dir = fresh_dir("rankslam_cli_eval");
+  fs::create_directories(dir);
+  std::ofstream(dir / "gt.txt") << "1.0 0 0 0 0 0 0 1\n2.0 0 0 0 0 0 0 1\n";
+  std::ofstream(dir / "est.txt") << "# header\n1.0 0 0 0 0 0 0 1\n2.0 0 0 oops 0 0 0 1\n";
+  const auto result = run("eval " + (dir / "gt.txt").string() + " " + (dir / "est.txt").string());
+  EXPECT_EQ(result.exit_code, 3);
+  EXPECT_NE(result.output.find("est.txt:3"), std::string::npos) << result.output;
+}
+
+TEST(Cli, ReplayOfARealRecordingWritesAllOutputs) {
+  const fs::path recording = shared_data() / "tum/fr1_rpy_head";
+  if (!fs::exists(recording)) GTEST_SKIP() << "shared data not found at " << shared_data() << ": replay test skipped";
+  const fs::path out = fresh_dir("rankslam_cli_replay");
+  const auto result = run("replay " + recording.string() + " --out " + out.string() + " --quiet");
+  ASSERT_EQ(result.exit_code, 0) << result.output;
+  for (const char* file : {"trajectory.txt", "map.ply", "trajectory.png", "report.json"}) {
+    EXPECT_TRUE(fs::exists(out / file)) << file;
+    EXPECT_GT(fs::file_size(out / file), 100U) << file;
+  }
+  const std::string report = slurp(out / "report.json");
+  for (const char* key : {"\"frames\": 180", "\"failed_frames\"", "\"mode\"", "\"ate_rmse_m\": 0.", "\"rpe_trans_m_per_s\": 0.",
+                          "\"rpe_rot_deg_per_s\"", "\"frame_ms\"", "\"median\"", "\"p90\"", "\"max\"", "\"stage_ms\""}) {
+    EXPECT_NE(report.find(key), std::string::npos) << key << "\n" << report;
+  }
+  EXPECT_EQ(slurp(out / "map.ply").rfind("ply\nformat binary_little_endian 1.0\n", 0), 0U);
+  EXPECT_EQ(slurp(out / "trajectory.png").substr(1, 3), "PNG");
+  auto trajectory = rankslam::eval::read_tum_trajectory(out / "trajectory.txt");
+  ASSERT_TRUE(trajectory.ok()) << trajectory.error();
+  EXPECT_EQ(trajectory.value().size(), 180U);
+  // No temporary files are left behind.
+  for (const auto& entry : fs::directory_iterator(out)) {
+    EXPECT_EQ(entry.path().string().find(".tmp"), std::string::npos) << entry.path();
+  }
+}
+
+TEST(Cli, ReplaySkipsACorruptImageNamesItAndFinishes) {
+  const fs::path source = shared_data() / "tum/fr1_desk_9";
+  if (!fs::exists(source)) GTEST_SKIP() << "shared data not found at " << shared_data() << ": corrupt-image test skipped";
+  const fs::path copy = fresh_dir("rankslam_cli_corrupt/fr1_desk_9");
+  fs::create_directories(copy.parent_path());
+  fs::copy(source, copy, fs::copy_options::recursive);
+  // Overwrite the middle of the fourth colour image with garbage and truncate the sixth depth image.
+  std::string fourth;
+  std::string sixth_depth;
+  {
+    std::ifstream associations(copy / "associations.txt");
+    std::string line;
+    for (int i = 0; std::getline(associations, line); ++i) {
+      std::istringstream fields(line);
+      std::string rgb_stamp, rgb_file, depth_stamp, depth_file;
+      fields >> rgb_stamp >> rgb_file >> depth_stamp >> depth_file;
+      if (i == 3) fourth = rgb_file;
+      if (i == 5) sixth_depth = depth_file;
+    }
+  }
+  {
+    std::fstream png(copy / fourth, std::ios::in | std::ios::out | std::ios::binary);
+    png.seekp(2000);
+    png << std::string(5000, '\x5a');
+  }
+  fs::resize_file(copy / sixth_depth, 500);
+  const fs::path out = fresh_dir("rankslam_cli_corrupt_out");
+  const auto result = run("replay " + copy.string() + " --out " + out.string() + " --quiet");
+  ASSERT_EQ(result.exit_code, 0) << result.output;
+  EXPECT_NE(result.output.find(fourth), std::string::npos) << result.output;
+  EXPECT_NE(result.output.find(sixth_depth), std::string::npos) << result.output;
+  const std::string report = slurp(out / "report.json");
+  EXPECT_NE(report.find("\"skipped_frames\": 2"), std::string::npos) << report;
+  EXPECT_NE(report.find("\"frames\": 7"), std::string::npos) << report;
+}
+
+TEST(Cli, SimulatedCorridorLoopReplays) {
+  const fs::path recording = fresh_dir("rankslam_cli_corridor");
+  const auto simulated = run("simulate corridor-loop --out " + recording.string() + " --frames 90");
+  ASSERT_EQ(simulated.exit_code, 0) << simulated.output;
+  for (const char* file : {"rgb.txt", "depth.txt", "groundtruth.txt", "calibration.yaml", "can.log", "fisheye.txt"}) {
+    EXPECT_TRUE(fs::exists(recording / file)) << file;
+  }
+  const fs::path out = fresh_dir("rankslam_cli_corridor_out");
+  const auto replayed = run("replay " + recording.string() + " --out " + out.string() + " --quiet");
+  ASSERT_EQ(replayed.exit_code, 0) << replayed.output;
+  EXPECT_NE(slurp(out / "report.json").find("\"frames\": 90"), std::string::npos);
+}
+
+TEST(Cli, ReplayWithoutRecordingSimulatesTheDefaultScene) {
+  const fs::path out = fresh_dir("rankslam_cli_default");
+  const auto result = run("replay --out " + out.string() + " --max-frames 60");
+  ASSERT_EQ(result.exit_code, 0) << result.output;
+  EXPECT_NE(result.output.find("ATE RMSE"), std::string::npos) << result.output;
+  EXPECT_TRUE(fs::exists(out / "recording/groundtruth.txt"));
+  EXPECT_TRUE(fs::exists(out / "report.json"));
+}
+
+TEST(Cli, ReplayErrorsNameTheProblem) {
+  const fs::path dir = fresh_dir("rankslam_cli_nocal");
+  fs::create_directories(dir);
+  std::ofstream(dir / "rgb.txt") << "1.0 rgb/1.png\n";
+  std::ofstream(dir / "depth.txt") << "1.0 depth/1.png\n";
+  auto result = run("replay " + dir.string() + " --out " + (dir / "out").string());
+  EXPECT_EQ(result.exit_code, 3);
+  EXPECT_NE(result.output.find("calibration.yaml"), std::string::npos) << result.output;
+
+  std::ofstream(dir / "bad.yaml") << "slam:\n  orb_features: 5\n";
+  result = run("replay " + dir.string() + " --out " + (dir / "out").string() + " --config " + (dir / "bad.yaml").string());
+  EXPECT_EQ(result.exit_code, 3);
+  EXPECT_NE(result.output.find("slam.orb_features"), std::string::npos) << result.output;
+
+  std::ofstream(dir / "unknown.yaml") << "slam:\n  orb_featurez: 500\n";
+  result = run("replay " + dir.string() + " --out " + (dir / "out").string() + " --config " + (dir / "unknown.yaml").string());
+  EXPECT_EQ(result.exit_code, 3);
+  EXPECT_NE(result.output.find("orb_featurez"), std::string::npos) << result.output;
+
+  result = run("replay " + dir.string() + " --out " + (dir / "out").string() + " --mode fused");
+  EXPECT_EQ(result.exit_code, 5);
+  EXPECT_NE(result.output.find("not implemented yet"), std::string::npos) << result.output;
+}
+
+}  // namespace
