@@ -54,43 +54,65 @@ void OrbFrontend::extract(const cv::Mat& gray, const cv::Mat& depth, Photometric
   features.descriptors = features.descriptors.rowRange(0, kept);
 }
 
+namespace {
+
+constexpr std::uint32_t kNone = std::numeric_limits<std::uint32_t>::max();
+
+// The whole source × target distance matrix in one pass: row minima give source→target, the
+// column minima kept on the way give target→source. x86-64's baseline has no POPCNT
+// instruction, so a POPCNT clone is chosen at load time where the CPU has it (never
+// -march=native: the binary must run on any x86-64 and arm64, whose baseline has a popcount).
+#if defined(__x86_64__) && defined(__GNUC__)
+__attribute__((target_clones("popcnt", "default")))
+#endif
+void scan_distances(const std::uint64_t* source, int n_source, const std::uint64_t* target, int n_target,
+                    std::uint32_t* best_target_for_source, std::uint32_t* best_source_for_target,
+                    std::uint32_t* best_distance_for_target) {
+  for (int i = 0; i < n_source; ++i) {
+    const std::uint64_t* a = source + 4 * i;
+    std::uint32_t best = kNone;
+    std::uint32_t best_j = kNone;
+    for (int j = 0; j < n_target; ++j) {
+      const std::uint64_t* b = target + 4 * j;
+      const auto distance = static_cast<std::uint32_t>(__builtin_popcountll(a[0] ^ b[0]) + __builtin_popcountll(a[1] ^ b[1]) +
+                                                       __builtin_popcountll(a[2] ^ b[2]) + __builtin_popcountll(a[3] ^ b[3]));
+      if (distance < best) {
+        best = distance;
+        best_j = static_cast<std::uint32_t>(j);
+      }
+      if (distance < best_distance_for_target[j]) {
+        best_distance_for_target[j] = distance;
+        best_source_for_target[j] = static_cast<std::uint32_t>(i);
+      }
+    }
+    best_target_for_source[i] = best_j;
+  }
+}
+
+// Copies 32-byte descriptor rows into 64-bit words so the scan reads them without alignment
+// concerns.
+void pack_descriptors(const cv::Mat& descriptors, std::vector<std::uint64_t>& words) {
+  words.resize(static_cast<std::size_t>(descriptors.rows) * 4);
+  for (int r = 0; r < descriptors.rows; ++r) std::memcpy(&words[static_cast<std::size_t>(r) * 4], descriptors.ptr(r), 32);
+}
+
+}  // namespace
+
 void MutualHammingMatcher::match(const cv::Mat& source, const cv::Mat& target, int max_distance,
                                  std::vector<FeatureMatch>& matches) {
   matches.clear();
   const int n_source = source.rows;
   const int n_target = target.rows;
   if (n_source == 0 || n_target == 0) return;
-  constexpr std::uint32_t kNone = std::numeric_limits<std::uint32_t>::max();
   best_source_for_target_.assign(static_cast<std::size_t>(n_target), kNone);
   best_distance_for_target_.assign(static_cast<std::size_t>(n_target), kNone);
-
-  // Row minima give source->target; the column minima, kept on the way, give target->source.
-  std::vector<std::uint32_t>& best_target_for_source = scratch_best_target_;
-  best_target_for_source.assign(static_cast<std::size_t>(n_source), kNone);
+  scratch_best_target_.assign(static_cast<std::size_t>(n_source), kNone);
+  pack_descriptors(source, source_words_);
+  pack_descriptors(target, target_words_);
+  scan_distances(source_words_.data(), n_source, target_words_.data(), n_target, scratch_best_target_.data(),
+                 best_source_for_target_.data(), best_distance_for_target_.data());
   for (int i = 0; i < n_source; ++i) {
-    std::uint64_t a[4];
-    std::memcpy(a, source.ptr(i), 32);
-    std::uint32_t best = kNone;
-    std::uint32_t best_j = kNone;
-    for (int j = 0; j < n_target; ++j) {
-      std::uint64_t b[4];
-      std::memcpy(b, target.ptr(j), 32);
-      const auto distance = static_cast<std::uint32_t>(std::popcount(a[0] ^ b[0]) + std::popcount(a[1] ^ b[1]) +
-                                                       std::popcount(a[2] ^ b[2]) + std::popcount(a[3] ^ b[3]));
-      if (distance < best) {
-        best = distance;
-        best_j = static_cast<std::uint32_t>(j);
-      }
-      const auto column = static_cast<std::size_t>(j);
-      if (distance < best_distance_for_target_[column]) {
-        best_distance_for_target_[column] = distance;
-        best_source_for_target_[column] = static_cast<std::uint32_t>(i);
-      }
-    }
-    best_target_for_source[static_cast<std::size_t>(i)] = best_j;
-  }
-  for (int i = 0; i < n_source; ++i) {
-    const std::uint32_t j = best_target_for_source[static_cast<std::size_t>(i)];
+    const std::uint32_t j = scratch_best_target_[static_cast<std::size_t>(i)];
     if (j == kNone || best_source_for_target_[j] != static_cast<std::uint32_t>(i)) continue;
     if (best_distance_for_target_[j] > static_cast<std::uint32_t>(max_distance)) continue;
     matches.push_back({static_cast<std::uint32_t>(i), j, best_distance_for_target_[j]});

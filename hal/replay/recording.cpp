@@ -1,5 +1,6 @@
 #include "rankslam/replay/recording.hpp"
 
+#include "rankslam/hal/associate.hpp"
 #include "rankslam/hal/candump.hpp"
 
 #include <yaml-cpp/yaml.h>
@@ -210,42 +211,6 @@ std::string read_camera(const YAML::Node& node, const std::string& where, hal::C
 
 }  // namespace
 
-std::vector<std::pair<std::size_t, std::size_t>> associate_stamps(const std::vector<double>& first,
-                                                                  const std::vector<double>& second,
-                                                                  double max_gap_s) {
-  struct Candidate {
-    double gap;
-    std::size_t a;
-    std::size_t b;
-  };
-  std::vector<std::size_t> order_b(second.size());
-  for (std::size_t i = 0; i < order_b.size(); ++i) order_b[i] = i;
-  std::sort(order_b.begin(), order_b.end(), [&](std::size_t x, std::size_t y) { return second[x] < second[y]; });
-
-  // Only pairs within the gap compete, so a window over the sorted second list is enough.
-  std::vector<Candidate> candidates;
-  for (std::size_t a = 0; a < first.size(); ++a) {
-    auto lo = std::lower_bound(order_b.begin(), order_b.end(), first[a] - max_gap_s,
-                               [&](std::size_t index, double stamp) { return second[index] < stamp; });
-    for (auto it = lo; it != order_b.end() && second[*it] <= first[a] + max_gap_s; ++it) {
-      const double gap = std::abs(first[a] - second[*it]);
-      if (gap < max_gap_s) candidates.push_back({gap, a, *it});
-    }
-  }
-  std::stable_sort(candidates.begin(), candidates.end(),
-                   [](const Candidate& x, const Candidate& y) { return x.gap < y.gap; });
-  std::vector<bool> used_a(first.size(), false);
-  std::vector<bool> used_b(second.size(), false);
-  std::vector<std::pair<std::size_t, std::size_t>> pairs;
-  for (const auto& candidate : candidates) {
-    if (used_a[candidate.a] || used_b[candidate.b]) continue;
-    used_a[candidate.a] = used_b[candidate.b] = true;
-    pairs.emplace_back(candidate.a, candidate.b);
-  }
-  std::sort(pairs.begin(), pairs.end(), [&](const auto& x, const auto& y) { return first[x.first] < first[y.first]; });
-  return pairs;
-}
-
 std::optional<hal::Calibration> tum_calibration(const std::string& camera_name) {
   hal::Calibration calibration;
   calibration.depth_scale = 5000.0;
@@ -347,7 +312,7 @@ std::string open_recording(const fs::path& root, Recording& recording) {
     std::vector<StampedFile> depth;
     if (auto error = read_stamped_list(root / "rgb.txt", rgb); !error.empty()) return error;
     if (auto error = read_stamped_list(root / "depth.txt", depth); !error.empty()) return error;
-    for (const auto& [i, j] : associate_stamps(stamps_of(rgb), stamps_of(depth), kMaxAssociationGap_s)) {
+    for (const auto& [i, j] : hal::associate_stamps(stamps_of(rgb), stamps_of(depth), kMaxAssociationGap_s)) {
       recording.frames.push_back({rgb[i].stamp_s, rgb[i].file, depth[j].stamp_s, depth[j].file, {}});
     }
     const std::size_t unmatched = rgb.size() - recording.frames.size();
@@ -366,7 +331,7 @@ std::string open_recording(const fs::path& root, Recording& recording) {
     std::vector<double> frame_stamps;
     frame_stamps.reserve(recording.frames.size());
     for (const auto& frame : recording.frames) frame_stamps.push_back(frame.depth_stamp_s);
-    for (const auto& [i, j] : associate_stamps(frame_stamps, stamps_of(ir), kMaxAssociationGap_s)) {
+    for (const auto& [i, j] : hal::associate_stamps(frame_stamps, stamps_of(ir), kMaxAssociationGap_s)) {
       recording.frames[i].ir_file = ir[j].file;
     }
   }

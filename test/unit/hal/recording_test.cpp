@@ -36,11 +36,13 @@ TEST(Recording, AssociatesByNearestStampWithoutAssociationsFile) {
 TEST(Recording, AssociationIsGreedyByGapAndOneToOne) {
   const std::vector<double> a = {1.000, 1.030, 1.100};
   const std::vector<double> b = {1.010, 1.025, 1.500};
-  const auto pairs = associate_stamps(a, b, 0.02);
+  const auto pairs = hal::associate_stamps(a, b, 0.02);
   ASSERT_EQ(pairs.size(), 2U);
   // 1.030-1.025 (gap 0.005) is taken first, leaving 1.000-1.010 (0.010); 1.100 has nothing near.
-  EXPECT_EQ(pairs[0], (std::pair<std::size_t, std::size_t>{0, 0}));
-  EXPECT_EQ(pairs[1], (std::pair<std::size_t, std::size_t>{1, 1}));
+  EXPECT_EQ(pairs[0].first_index, 0U);
+  EXPECT_EQ(pairs[0].second_index, 0U);
+  EXPECT_EQ(pairs[1].first_index, 1U);
+  EXPECT_EQ(pairs[1].second_index, 1U);
 }
 
 TEST(Recording, TumCalibrationFromFolderNameOrGroundTruthHeader) {

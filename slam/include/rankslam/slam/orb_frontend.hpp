@@ -63,6 +63,8 @@ class MutualHammingMatcher {
   std::vector<std::uint32_t> best_source_for_target_;
   std::vector<std::uint32_t> best_distance_for_target_;
   std::vector<std::uint32_t> scratch_best_target_;
+  std::vector<std::uint64_t> source_words_;
+  std::vector<std::uint64_t> target_words_;
 };
 
 }  // namespace rankslam::slam

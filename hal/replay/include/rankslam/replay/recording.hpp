@@ -1,5 +1,6 @@
 #pragma once
 
+#include "rankslam/hal/associate.hpp"
 #include "rankslam/hal/calibration.hpp"
 #include "rankslam/hal/messages.hpp"
 
@@ -40,17 +41,11 @@ struct Recording {
 
 /// Largest stamp difference, in seconds, for two streams' samples to count as simultaneous
 /// (the TUM benchmark's associate.py default).
-inline constexpr double kMaxAssociationGap_s = 0.02;
+inline constexpr double kMaxAssociationGap_s = hal::kDefaultMaxDifference_s;
 
 /// Indexes a recording directory (see README, "Recording format"). Returns an error message
 /// naming the file and line on failure, an empty string on success.
 [[nodiscard]] std::string open_recording(const std::filesystem::path& root, Recording& recording);
-
-/// Associates two stamp lists as the TUM benchmark does: every pair closer than `max_gap_s`,
-/// taken greedily by increasing gap so that each stamp is used at most once. Returns index pairs
-/// sorted by the first list's stamps.
-[[nodiscard]] std::vector<std::pair<std::size_t, std::size_t>> associate_stamps(
-    const std::vector<double>& first, const std::vector<double>& second, double max_gap_s);
 
 /// Reads a calibration.yaml (README, "calibration.yaml"). Error message naming file and field
 /// on failure, empty on success.

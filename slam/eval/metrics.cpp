@@ -1,0 +1,246 @@
+#include "rankslam/eval/metrics.hpp"
+
+#include <algorithm>
+#include <array>
+#include <cmath>
+#include <cstdio>
+#include <numbers>
+#include <string>
+#include <string_view>
+
+#include <Eigen/Geometry>
+
+namespace rankslam::eval {
+namespace {
+
+std::string seconds_text(double value_s) {
+  std::array<char, 64> text{};
+  std::snprintf(text.data(), text.size(), "%.6f", value_s);
+  return text.data();
+}
+
+/// The span of stamps "[first, last] s" of a trajectory, for error messages.
+std::string stamp_range_text(const Trajectory& trajectory) {
+  double first_s = trajectory.front().stamp_s;
+  double last_s = first_s;
+  for (const StampedPose& pose : trajectory) {
+    first_s = std::min(first_s, pose.stamp_s);
+    last_s = std::max(last_s, pose.stamp_s);
+  }
+  return "[" + seconds_text(first_s) + ", " + seconds_text(last_s) + "] s";
+}
+
+/// Empty when every pose is finite, otherwise names the first one that is not.
+std::string non_finite_pose(const Trajectory& trajectory, std::string_view name) {
+  for (std::size_t i = 0; i < trajectory.size(); ++i) {
+    if (!std::isfinite(trajectory[i].stamp_s) || !trajectory[i].T_world_cam.matrix().allFinite()) {
+      return std::string(name) + " pose " + std::to_string(i) + " (stamp " +
+             seconds_text(trajectory[i].stamp_s) + " s) is not finite";
+    }
+  }
+  return {};
+}
+
+/// A trajectory sorted by stamp with one pose per stamp (the last in input order), as the TUM
+/// scripts see it after keying a dict by stamp.
+struct SortedTrajectory {
+  std::vector<double> stamps_s;
+  std::vector<const Eigen::Isometry3d*> poses;
+};
+
+SortedTrajectory sort_unique(const Trajectory& trajectory) {
+  std::vector<std::size_t> order;
+  order.reserve(trajectory.size());
+  for (std::size_t i = 0; i < trajectory.size(); ++i) {
+    if (std::isfinite(trajectory[i].stamp_s)) order.push_back(i);
+  }
+  std::stable_sort(order.begin(), order.end(), [&](std::size_t a, std::size_t b) {
+    return trajectory[a].stamp_s < trajectory[b].stamp_s;
+  });
+  SortedTrajectory sorted;
+  sorted.stamps_s.reserve(order.size());
+  sorted.poses.reserve(order.size());
+  for (std::size_t k = 0; k < order.size(); ++k) {
+    const StampedPose& pose = trajectory[order[k]];
+    if (k + 1 < order.size() && trajectory[order[k + 1]].stamp_s == pose.stamp_s) continue;
+    sorted.stamps_s.push_back(pose.stamp_s);
+    sorted.poses.push_back(&pose.T_world_cam);
+  }
+  return sorted;
+}
+
+/// Index of the stamp nearest to t in an ascending, non-empty list; ties go to the earlier one.
+std::size_t closest_index(const std::vector<double>& sorted_s, double t_s) {
+  const auto it = std::lower_bound(sorted_s.begin(), sorted_s.end(), t_s);
+  if (it == sorted_s.begin()) return 0;
+  const auto after = static_cast<std::size_t>(it - sorted_s.begin());
+  if (it == sorted_s.end()) return after - 1;
+  return (t_s - sorted_s[after - 1] <= sorted_s[after] - t_s) ? after - 1 : after;
+}
+
+double median_of(std::vector<double> values) {
+  if (values.empty()) return 0.0;
+  const std::size_t half = values.size() / 2;
+  std::nth_element(values.begin(), values.begin() + static_cast<std::ptrdiff_t>(half),
+                   values.end());
+  const double upper = values[half];
+  if (values.size() % 2 == 1) return upper;
+  const double lower =
+      *std::max_element(values.begin(), values.begin() + static_cast<std::ptrdiff_t>(half));
+  return 0.5 * (lower + upper);
+}
+
+}  // namespace
+
+ErrorStats compute_error_stats(std::span<const double> errors) {
+  ErrorStats stats;
+  stats.count = errors.size();
+  if (errors.empty()) return stats;
+  const auto n = static_cast<double>(errors.size());
+  double sum = 0.0;
+  double sum_squares = 0.0;
+  stats.min = errors.front();
+  stats.max = errors.front();
+  for (const double e : errors) {
+    sum += e;
+    sum_squares += e * e;
+    stats.min = std::min(stats.min, e);
+    stats.max = std::max(stats.max, e);
+  }
+  stats.mean = sum / n;
+  stats.rmse = std::sqrt(sum_squares / n);
+  double sum_deviation_squares = 0.0;  // two passes: no cancellation when errors are alike
+  for (const double e : errors) sum_deviation_squares += (e - stats.mean) * (e - stats.mean);
+  stats.stddev = std::sqrt(sum_deviation_squares / n);
+  stats.median = median_of(std::vector<double>(errors.begin(), errors.end()));
+  return stats;
+}
+
+Result<AteResult> compute_ate(const Trajectory& ground_truth, const Trajectory& estimate,
+                              const AteOptions& options) {
+  if (ground_truth.empty()) return Result<AteResult>::failure("ground truth has no poses");
+  if (estimate.empty()) return Result<AteResult>::failure("estimate has no poses");
+  for (const std::string& error :
+       {non_finite_pose(ground_truth, "ground truth"), non_finite_pose(estimate, "estimate")}) {
+    if (!error.empty()) return Result<AteResult>::failure(error);
+  }
+  if (!(options.max_difference_s > 0.0) || !std::isfinite(options.max_difference_s)) {
+    return Result<AteResult>::failure("ATE max_difference_s must be a positive number, not " +
+                                      std::to_string(options.max_difference_s));
+  }
+
+  AteResult result;
+  result.matches = associate(ground_truth, estimate, options.max_difference_s);
+  const std::size_t n = result.matches.size();
+  if (n == 0) {
+    return Result<AteResult>::failure(
+        "no estimate stamp is within " + seconds_text(options.max_difference_s) +
+        " s of a ground-truth stamp (estimate " + stamp_range_text(estimate) + ", ground truth " +
+        stamp_range_text(ground_truth) + ")");
+  }
+
+  Eigen::Matrix3Xd estimate_xyz(3, static_cast<Eigen::Index>(n));
+  Eigen::Matrix3Xd truth_xyz(3, static_cast<Eigen::Index>(n));
+  for (std::size_t k = 0; k < n; ++k) {
+    const auto column = static_cast<Eigen::Index>(k);
+    truth_xyz.col(column) = ground_truth[result.matches[k].first_index].T_world_cam.translation();
+    estimate_xyz.col(column) = estimate[result.matches[k].second_index].T_world_cam.translation();
+  }
+  // Umeyama (1991) without scale is Horn's closed form, the one evaluate_ate.py's align() uses:
+  // SVD of the cross-covariance, with the reflection guard on det(U) det(V).
+  result.T_gtworld_estworld.matrix() = Eigen::umeyama(estimate_xyz, truth_xyz, false);
+
+  result.errors_m.resize(n);
+  for (std::size_t k = 0; k < n; ++k) {
+    const auto column = static_cast<Eigen::Index>(k);
+    result.errors_m[k] = (result.T_gtworld_estworld * Eigen::Vector3d(estimate_xyz.col(column)) -
+                          truth_xyz.col(column))
+                             .norm();
+  }
+  result.translation_m = compute_error_stats(result.errors_m);
+
+  result.aligned_estimate = estimate;
+  for (StampedPose& pose : result.aligned_estimate) {
+    pose.T_world_cam = result.T_gtworld_estworld * pose.T_world_cam;
+  }
+  return Result<AteResult>::success(std::move(result));
+}
+
+Result<RpeResult> compute_rpe(const Trajectory& ground_truth, const Trajectory& estimate,
+                              const RpeOptions& options) {
+  if (!(options.delta_s > 0.0) || !std::isfinite(options.delta_s)) {
+    return Result<RpeResult>::failure("RPE delta_s must be a positive number, not " +
+                                      std::to_string(options.delta_s));
+  }
+  if (!(options.max_gt_difference_s >= 0.0) || !std::isfinite(options.max_gt_difference_s)) {
+    return Result<RpeResult>::failure("RPE max_gt_difference_s must be >= 0, not " +
+                                      std::to_string(options.max_gt_difference_s));
+  }
+  for (const std::string& error :
+       {non_finite_pose(ground_truth, "ground truth"), non_finite_pose(estimate, "estimate")}) {
+    if (!error.empty()) return Result<RpeResult>::failure(error);
+  }
+  const SortedTrajectory truth = sort_unique(ground_truth);
+  const SortedTrajectory est = sort_unique(estimate);
+  if (truth.stamps_s.size() < 2) {
+    return Result<RpeResult>::failure("ground truth has fewer than 2 poses");
+  }
+  if (est.stamps_s.size() < 2) return Result<RpeResult>::failure("estimate has fewer than 2 poses");
+
+  double max_gt_difference_s = options.max_gt_difference_s;
+  if (max_gt_difference_s == 0.0) {
+    std::vector<double> intervals_s(truth.stamps_s.size() - 1);
+    for (std::size_t k = 0; k + 1 < truth.stamps_s.size(); ++k) {
+      intervals_s[k] = truth.stamps_s[k + 1] - truth.stamps_s[k];
+    }
+    max_gt_difference_s = 2.0 * median_of(std::move(intervals_s));
+  }
+
+  RpeResult result;
+  result.delta_s = options.delta_s;
+  const std::size_t n = est.stamps_s.size();
+  for (std::size_t i = 0; i < n; ++i) {
+    const std::size_t j = closest_index(est.stamps_s, est.stamps_s[i] + options.delta_s);
+    if (j == n - 1) continue;  // evaluate_rpe.py's end-of-trajectory rule
+    const double stamp_est_0_s = est.stamps_s[i];
+    const double stamp_est_1_s = est.stamps_s[j];
+    const std::size_t g0 = closest_index(truth.stamps_s, stamp_est_0_s);
+    const std::size_t g1 = closest_index(truth.stamps_s, stamp_est_1_s);
+    if (std::abs(truth.stamps_s[g0] - stamp_est_0_s) > max_gt_difference_s ||
+        std::abs(truth.stamps_s[g1] - stamp_est_1_s) > max_gt_difference_s) {
+      continue;
+    }
+    const Eigen::Isometry3d truth_motion = truth.poses[g0]->inverse() * *truth.poses[g1];
+    const Eigen::Isometry3d est_motion = est.poses[i]->inverse() * *est.poses[j];
+    const Eigen::Isometry3d error = truth_motion.inverse() * est_motion;
+
+    RpePair pair;
+    pair.stamp_est_0_s = stamp_est_0_s;
+    pair.stamp_est_1_s = stamp_est_1_s;
+    pair.stamp_gt_0_s = truth.stamps_s[g0];
+    pair.stamp_gt_1_s = truth.stamps_s[g1];
+    pair.translation_m = error.translation().norm();
+    // Angle through the quaternion (atan2): accurate near zero, where acos((trace-1)/2) is not.
+    pair.rotation_deg =
+        Eigen::AngleAxisd(Eigen::Quaterniond(error.linear())).angle() * 180.0 / std::numbers::pi;
+    result.pairs.push_back(pair);
+  }
+  if (result.pairs.empty()) {
+    return Result<RpeResult>::failure(
+        "no pose pairs " + seconds_text(options.delta_s) + " s apart with ground truth within " +
+        seconds_text(max_gt_difference_s) + " s of both (estimate " + stamp_range_text(estimate) +
+        ", ground truth " + stamp_range_text(ground_truth) + ")");
+  }
+
+  std::vector<double> translation_m_per_s(result.pairs.size());
+  std::vector<double> rotation_deg_per_s(result.pairs.size());
+  for (std::size_t k = 0; k < result.pairs.size(); ++k) {
+    translation_m_per_s[k] = result.pairs[k].translation_m / options.delta_s;
+    rotation_deg_per_s[k] = result.pairs[k].rotation_deg / options.delta_s;
+  }
+  result.translation_m_per_s = compute_error_stats(translation_m_per_s);
+  result.rotation_deg_per_s = compute_error_stats(rotation_deg_per_s);
+  return Result<RpeResult>::success(std::move(result));
+}
+
+}  // namespace rankslam::eval
