@@ -10,6 +10,7 @@ build_packages=(
 )
 test_packages=(
   libgtest-dev libgmock-dev libbenchmark-dev libopencv-contrib-dev
+  qemu-system-x86 busybox-static can-utils iproute2
 )
 
 packages=("${build_packages[@]}")
