@@ -1,5 +1,7 @@
 #pragma once
 
+#include "rankslam/slam/config.hpp"
+
 #include <cstdint>
 #include <filesystem>
 #include <string>
@@ -40,6 +42,10 @@ struct RunArgs {
 [[nodiscard]] int run_simulate(const SimulateArgs& args);
 [[nodiscard]] int run_eval(const EvalArgs& args);
 [[nodiscard]] int run_live(const RunArgs& args);
+
+/// The registration `rankslam replay` and `run` use without --mode: the most accurate one
+/// implemented (measured on fr1_rpy_head).
+inline constexpr slam::Mode kDefaultMode = slam::Mode::kPhotometric;
 
 /// The scene `rankslam replay` simulates when given no recording.
 inline constexpr const char* kDefaultScene = "office";

@@ -67,6 +67,7 @@ int run_replay(const ReplayArgs& args) {
       return kExitInput;
     }
   }
+  config.mode = kDefaultMode;
   if (!args.mode.empty()) {
     const auto mode = parse_mode(args.mode);
     if (!mode) {
@@ -166,7 +167,7 @@ int run_replay(const ReplayArgs& args) {
     exit_code = kExitOutput;
   };
   report_error(eval::write_tum_trajectory(args.out / "trajectory.txt", estimate));
-  report_error(hal::write_file_atomically(args.out / "map.ply", loop.map().to_ply()));
+  report_error(hal::write_file_atomically(args.out / "map.ply", std::string_view(loop.map().to_ply())));
 
   std::optional<eval::EvalResult> accuracy;
   std::optional<eval::Trajectory> ground_truth;
@@ -226,7 +227,7 @@ int run_replay(const ReplayArgs& args) {
   json.string("calibration", recording.calibration.source);
   json.raw_object("config", slam_config_json(config));
   json.end_object();
-  report_error(hal::write_file_atomically(args.out / "report.json", json.str()));
+  report_error(hal::write_file_atomically(args.out / "report.json", std::string_view(json.str())));
 
   const Percentiles timing = percentiles(frame_ms);
   std::printf("frames %zu  failed %d  skipped %u  median %.1f ms/frame\n", estimate.size(), failed_frames,
