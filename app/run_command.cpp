@@ -1,16 +1,383 @@
+// `rankslam run`: live operation. Builds the drivers the robot configuration names, connects
+// camera → SLAM loop → pose frames on CAN, and flushes trajectory and map on exit.
 #include "commands.hpp"
+#include "config_file.hpp"
 #include "exit_codes.hpp"
+#include "json_writer.hpp"
+#include "robot_config.hpp"
 
+#include "rankslam/eval/trajectory.hpp"
+#include "rankslam/hal/atomic_file.hpp"
+#include "rankslam/nav/pose_broadcaster.hpp"
+#include "rankslam/nav/wheel_frame.hpp"
+#include "rankslam/replay/replay_camera.hpp"
+#include "rankslam/slam/slam_loop.hpp"
+#include "rankslam/socketcan/socketcan_bus.hpp"
+
+#include <atomic>
+#include <chrono>
+#include <condition_variable>
+#include <csignal>
+#include <cstdio>
 #include <iostream>
+#include <memory>
+#include <mutex>
+#include <optional>
+#include <thread>
 
 namespace rankslam::app {
+namespace {
+
+std::atomic<bool> g_stop{false};
+
+extern "C" void request_run_stop(int /*signal*/) { g_stop.store(true); }
+
+/// Installs SIGINT/SIGTERM handlers for its lifetime.
+class StopSignals {
+ public:
+  StopSignals() {
+    g_stop = false;
+    struct sigaction action {};
+    action.sa_handler = request_run_stop;
+    sigemptyset(&action.sa_mask);
+    sigaction(SIGINT, &action, &old_int_);
+    sigaction(SIGTERM, &action, &old_term_);
+  }
+  ~StopSignals() {
+    sigaction(SIGINT, &old_int_, nullptr);
+    sigaction(SIGTERM, &old_term_, nullptr);
+  }
+  StopSignals(const StopSignals&) = delete;
+  StopSignals& operator=(const StopSignals&) = delete;
+
+ private:
+  struct sigaction old_int_ {};
+  struct sigaction old_term_ {};
+};
+
+/// What the SLAM thread hands to the output thread: the latest sample and the camera state.
+struct Mailbox {
+  std::mutex mutex;
+  std::optional<nav::PoseSample> sample;
+  std::uint64_t sample_count = 0;
+  bool camera_fault = false;
+  bool end_of_stream = false;
+};
+
+/// Wheel frames received from the bus (the base controller's, or the replayed ones).
+struct WheelCounters {
+  std::uint64_t frames = 0;
+  std::uint64_t malformed = 0;
+  std::uint64_t counter_gaps = 0;  ///< rolling-counter jumps: frames lost somewhere
+};
+
+struct OutputResult {
+  nav::PoseOutputCounters pose;
+  WheelCounters wheels;
+  hal::CanBusStatistics bus;
+};
+
+/// The output thread: pose cycles and heartbeats at their rates, wheel frames in. It owns its
+/// CAN socket; SLAM never waits for it.
+void output_thread(const RobotConfig& config, unsigned wheel_can_id, Mailbox& mailbox, const std::atomic<bool>& stop,
+                   OutputResult& result) {
+  socketcan::SocketCanOptions options;
+  options.interface_name = config.can_interface;
+  options.filters.push_back({wheel_can_id, 0x7FF, false});
+  socketcan::SocketCanBus bus(options);
+  // open() was checked by the caller on an identical bus; a failure here is counted as faults.
+  (void)bus.open();
+  hal::MonotonicClock clock;
+  nav::PoseBroadcaster broadcaster(config.output, bus, clock);
+  std::uint64_t seen = 0;
+  std::optional<std::uint8_t> last_counter;
+  hal::CanFrame frame;
+  while (!stop.load()) {
+    {
+      std::lock_guard lock(mailbox.mutex);
+      if (mailbox.sample_count != seen && mailbox.sample) {
+        seen = mailbox.sample_count;
+        broadcaster.update(*mailbox.sample);
+      }
+      broadcaster.set_camera_state(mailbox.camera_fault, mailbox.end_of_stream);
+    }
+    const std::int64_t wait_ns = broadcaster.poll();
+    // Wait for the next due frame inside receive(), which also collects wheel frames.
+    const auto wait = std::chrono::milliseconds(std::min<std::int64_t>(wait_ns / 1'000'000, 20));
+    const hal::ReadStatus status = bus.receive(frame, wait);
+    if (status == hal::ReadStatus::kOk) {
+      if (const auto ticks = nav::decode_wheel_ticks(frame)) {
+        ++result.wheels.frames;
+        if (last_counter && static_cast<std::uint8_t>(*last_counter + 1U) != ticks->rolling_counter) {
+          ++result.wheels.counter_gaps;
+        }
+        last_counter = ticks->rolling_counter;
+      } else {
+        ++result.wheels.malformed;
+      }
+    } else if (status == hal::ReadStatus::kFault) {
+      std::this_thread::sleep_for(wait);  // the bus reopens on its own; do not spin meanwhile
+    }
+  }
+  result.pose = broadcaster.counters();
+  result.bus = bus.statistics();
+  bus.close();
+}
+
+/// Plays a recording's wheel frames onto the bus on their recorded timing (scaled by `rate`).
+class WheelPlayer {
+ public:
+  WheelPlayer(const std::vector<hal::CanFrame>& frames, const std::string& interface_name, double rate)
+      : frames_(frames), rate_(rate > 0.0 ? rate : 1.0) {
+    socketcan::SocketCanOptions options;
+    options.interface_name = interface_name;
+    // This socket only sends: receive nothing but an identifier no one uses.
+    options.filters.push_back({0x7FF, 0x7FF, false});
+    options.error_frames = false;
+    bus_ = std::make_unique<socketcan::SocketCanBus>(options);
+  }
+  ~WheelPlayer() { stop(); }
+  WheelPlayer(const WheelPlayer&) = delete;
+  WheelPlayer& operator=(const WheelPlayer&) = delete;
+
+  [[nodiscard]] std::string start() {
+    if (auto error = bus_->open(); !error.empty()) return error;
+    thread_ = std::thread([this] { play(); });
+    return {};
+  }
+  void stop() {
+    {
+      std::lock_guard lock(mutex_);
+      stop_ = true;
+    }
+    changed_.notify_all();
+    if (thread_.joinable()) thread_.join();
+  }
+  [[nodiscard]] std::uint64_t sent() const { return sent_.load(); }
+  [[nodiscard]] std::uint64_t dropped() const { return dropped_.load(); }
+
+ private:
+  void play() {
+    if (frames_.empty()) return;
+    const auto start = std::chrono::steady_clock::now();
+    const std::int64_t first_ns = frames_.front().stamp_ns;
+    for (const hal::CanFrame& frame : frames_) {
+      const auto offset = std::chrono::nanoseconds(static_cast<std::int64_t>(static_cast<double>(frame.stamp_ns - first_ns) / rate_));
+      {
+        std::unique_lock lock(mutex_);
+        if (changed_.wait_until(lock, start + offset, [this] { return stop_; })) return;
+      }
+      if (bus_->send(frame) == hal::ReadStatus::kOk) {
+        ++sent_;
+      } else {
+        ++dropped_;
+      }
+    }
+  }
+
+  const std::vector<hal::CanFrame>& frames_;
+  double rate_;
+  std::unique_ptr<socketcan::SocketCanBus> bus_;
+  std::mutex mutex_;
+  std::condition_variable changed_;
+  bool stop_ = false;
+  std::atomic<std::uint64_t> sent_{0};
+  std::atomic<std::uint64_t> dropped_{0};
+  std::thread thread_;
+};
+
+}  // namespace
 
 int run_live(const RunArgs& args) {
-  // Live operation needs the OpenNI2, V4L2 and SocketCAN drivers, which this build does not
-  // contain yet; say so plainly instead of pretending to run.
-  std::cerr << "error: live operation (rankslam run --config " << args.config.string()
-            << ") needs the hardware drivers, which are not part of this build yet\n";
-  return kExitNotAvailable;
+  namespace fs = std::filesystem;
+  RobotConfig robot;
+  if (auto error = load_robot_config(args.config, robot); !error.empty()) {
+    std::cerr << "error: " << error << "\n";
+    return kExitInput;
+  }
+  slam::SlamConfig slam_config;
+  if (auto error = load_slam_config(args.config, slam_config); !error.empty()) {
+    std::cerr << "error: " << error << "\n";
+    return kExitInput;
+  }
+  slam_config.mode = kDefaultMode;
+  const fs::path out = args.out.empty() ? robot.output_dir : args.out;
+  if (out.empty()) {
+    std::cerr << "error: " << args.config.string() << ": no output directory (output.dir or --out)\n";
+    return kExitUsage;
+  }
+  if (robot.camera_source == CameraSource::kOpenNI2) {
+    std::cerr << "error: " << args.config.string() << ": camera.source openni2: needs the OpenNI2 driver, which is not part of this build yet\n";
+    return kExitNotAvailable;
+  }
+  std::error_code ec;
+  fs::create_directories(out, ec);
+  if (!fs::is_directory(out)) {
+    std::cerr << "error: cannot create output directory " << out << ": " << ec.message() << "\n";
+    return kExitOutput;
+  }
+
+  // Set-up: everything that may fail or allocate happens here.
+  replay::Recording recording;
+  if (auto error = replay::open_recording(robot.camera_location, recording); !error.empty()) {
+    std::cerr << "error: " << args.config.string() << ": camera.source: " << error << "\n";
+    return kExitInput;
+  }
+  for (const auto& warning : recording.warnings) std::cerr << "warning: " << warning << "\n";
+  replay::ReplayOptions replay_options;
+  replay_options.rate = robot.replay_rate;
+  replay_options.max_frames = robot.max_frames;
+  replay::ReplayDepthCamera camera(recording, replay_options);
+  if (auto error = camera.open(); !error.empty()) {
+    std::cerr << "error: " << error << "\n";
+    return kExitInput;
+  }
+  const hal::Calibration& calibration = camera.calibration();
+  const unsigned wheel_can_id = calibration.wheels ? calibration.wheels->can_id : hal::WheelGeometry{}.can_id;
+
+  {
+    // Opening the bus once here turns a missing interface into a start-up error.
+    socketcan::SocketCanOptions probe_options;
+    probe_options.interface_name = robot.can_interface;
+    socketcan::SocketCanBus probe(probe_options);
+    if (auto error = probe.open(); !error.empty()) {
+      std::cerr << "error: CAN interface " << robot.can_interface << ": " << error << "\n";
+      return kExitInput;
+    }
+    probe.close();
+  }
+
+  std::cout << "robot configuration " << args.config.string() << "\n"
+            << describe_robot_config(robot) << "camera: replay of " << recording.root.string() << ", "
+            << camera.frame_count() << " frames, " << recording.can_frames.size() << " CAN frames, calibration "
+            << calibration.source << "\n"
+            << describe_slam_config(slam_config) << std::flush;
+
+  slam::SlamLoop loop(slam_config, calibration);
+  const Eigen::Isometry3d T_base_cam = calibration.rgb.T_base_cam;
+  const Eigen::Isometry3d T_cam_base = T_base_cam.inverse();
+  eval::Trajectory trajectory;
+  trajectory.reserve(robot.max_trajectory_poses);
+  std::uint64_t trajectory_overflow = 0;
+  int failed_frames = 0;
+
+  const StopSignals signals;
+  Mailbox mailbox;
+  std::atomic<bool> stop_output{false};
+  OutputResult output;
+  std::thread sender([&] { output_thread(robot, wheel_can_id, mailbox, stop_output, output); });
+
+  std::optional<WheelPlayer> player;
+  if (robot.play_wheel_frames && !recording.can_frames.empty()) {
+    player.emplace(recording.can_frames, robot.can_interface, robot.replay_rate);
+    if (auto error = player->start(); !error.empty()) {
+      std::cerr << "warning: wheel frames are not played: " << error << "\n";
+      player.reset();
+    }
+  }
+
+  hal::RgbdFrame frame;
+  bool interrupted = false;
+  std::optional<std::chrono::steady_clock::time_point> end_time;
+  for (;;) {
+    if (g_stop.load()) {
+      interrupted = true;
+      break;
+    }
+    if (end_time) {
+      if (robot.exit_after_end_s >= 0.0 &&
+          std::chrono::steady_clock::now() - *end_time >= std::chrono::duration<double>(robot.exit_after_end_s)) {
+        break;
+      }
+      std::this_thread::sleep_for(std::chrono::milliseconds(20));
+      continue;
+    }
+    const hal::ReadStatus status = camera.read(frame, std::chrono::milliseconds(100));
+    for (const auto& warning : camera.take_warnings()) std::cerr << "warning: " << warning << "\n";
+    if (status == hal::ReadStatus::kEndOfStream) {
+      std::cout << "end of stream after " << trajectory.size() << " frames" << std::endl;
+      end_time = std::chrono::steady_clock::now();
+      std::lock_guard lock(mailbox.mutex);
+      mailbox.end_of_stream = true;
+      continue;
+    }
+    if (status != hal::ReadStatus::kOk) {
+      std::lock_guard lock(mailbox.mutex);
+      mailbox.camera_fault = status == hal::ReadStatus::kFault;
+      continue;
+    }
+    const std::int64_t capture_ns = hal::MonotonicClock{}.now_ns();
+    const slam::FrameResult result = loop.process(frame);
+    const bool registered = result.status != slam::FrameStatus::kFailed;
+    if (!registered) ++failed_frames;
+    if (trajectory.size() < robot.max_trajectory_poses) {
+      trajectory.push_back({frame.stamp_s, result.T_world_cam});
+    } else {
+      ++trajectory_overflow;
+    }
+    nav::PoseSample sample;
+    // The map frame is the base frame at the first camera frame.
+    sample.T_map_base = T_base_cam * result.T_world_cam * T_cam_base;
+    sample.capture_ns = capture_ns;
+    sample.frame_sequence = frame.sequence;
+    sample.registered = registered;
+    if (result.status != slam::FrameStatus::kFirstFrame && result.features > 0) {
+      sample.inlier_percent = static_cast<std::uint8_t>(std::min(100, 100 * result.inliers / result.features));
+    }
+    std::lock_guard lock(mailbox.mutex);
+    mailbox.sample = sample;
+    ++mailbox.sample_count;
+    mailbox.camera_fault = false;
+  }
+
+  if (player) player->stop();
+  stop_output = true;
+  sender.join();
+  const replay::ReplayCounters replay_counters = camera.counters();
+  camera.close();
+
+  // Outputs, each written atomically: an interrupted run never leaves half a file.
+  int exit_code = interrupted ? kExitInterrupted : kExitOk;
+  const auto report_error = [&](const std::string& error) {
+    if (error.empty()) return;
+    std::cerr << "error: " << error << "\n";
+    exit_code = kExitOutput;
+  };
+  report_error(eval::write_tum_trajectory(out / "trajectory.txt", trajectory));
+  report_error(hal::write_file_atomically(out / "map.ply", std::string_view(loop.map().to_ply())));
+
+  JsonWriter json;
+  json.begin_object();
+  json.string("config", args.config.string());
+  json.string("camera", "replay:" + recording.root.string());
+  json.string("can_interface", robot.can_interface);
+  json.integer("frames", static_cast<long long>(trajectory.size()));
+  json.integer("failed_frames", failed_frames);
+  json.integer("skipped_frames", replay_counters.corrupt);
+  json.integer("dropped_frames", replay_counters.dropped);
+  json.integer("trajectory_overflow", static_cast<long long>(trajectory_overflow));
+  json.integer("pose_cycles", static_cast<long long>(output.pose.pose_cycles));
+  json.integer("lost_cycles", static_cast<long long>(output.pose.lost_cycles));
+  json.integer("heartbeats", static_cast<long long>(output.pose.heartbeats));
+  json.integer("tx_dropped", static_cast<long long>(output.pose.tx_dropped));
+  json.integer("tx_faults", static_cast<long long>(output.pose.tx_faults));
+  json.integer("wheel_frames_played", player ? static_cast<long long>(player->sent()) : 0LL);
+  json.integer("wheel_frames_received", static_cast<long long>(output.wheels.frames));
+  json.integer("wheel_counter_gaps", static_cast<long long>(output.wheels.counter_gaps));
+  json.integer("bus_frames_tx", static_cast<long long>(output.bus.frames_tx));
+  json.integer("bus_error_frames", static_cast<long long>(output.bus.error_frames));
+  json.integer("bus_faults", static_cast<long long>(output.bus.faults));
+  json.boolean("interrupted", interrupted);
+  json.end_object();
+  report_error(hal::write_file_atomically(out / "report.json", std::string_view(json.str())));
+
+  std::printf("frames %zu  failed %d  pose cycles %llu (lost %llu)  heartbeats %llu  wheel frames in %llu%s\n",
+              trajectory.size(), failed_frames, static_cast<unsigned long long>(output.pose.pose_cycles),
+              static_cast<unsigned long long>(output.pose.lost_cycles),
+              static_cast<unsigned long long>(output.pose.heartbeats),
+              static_cast<unsigned long long>(output.wheels.frames), interrupted ? "  (interrupted)" : "");
+  std::printf("outputs in %s\n", out.string().c_str());
+  return exit_code;
 }
 
 }  // namespace rankslam::app

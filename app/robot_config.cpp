@@ -1,0 +1,133 @@
+#include "robot_config.hpp"
+
+#include <yaml-cpp/yaml.h>
+
+#include <map>
+#include <set>
+#include <sstream>
+
+namespace rankslam::app {
+namespace {
+
+// Sections and keys this loader knows; `slam` belongs to load_slam_config.
+const std::set<std::string> kSections = {"robot", "camera", "can", "output", "slam"};
+const std::map<std::string, std::set<std::string>> kKeys = {
+    {"robot", {"name"}},
+    {"camera", {"source", "replay_rate", "max_frames", "exit_after_end_s"}},
+    {"can", {"interface", "play_wheel_frames"}},
+    {"output", {"pose_rate_hz", "heartbeat_rate_hz", "watchdog_timeout_s", "lost_after_failed_frames", "dir",
+                "max_trajectory_poses"}},
+};
+
+template <typename T>
+std::string read(const YAML::Node& section, const std::string& where, const char* key, T& value) {
+  const YAML::Node node = section[key];
+  if (!node) return {};
+  try {
+    value = node.as<T>();
+  } catch (const YAML::Exception&) {
+    return where + "." + key + " is not a valid value";
+  }
+  return {};
+}
+
+}  // namespace
+
+std::string load_robot_config(const std::filesystem::path& path, RobotConfig& config) {
+  YAML::Node root;
+  try {
+    root = YAML::LoadFile(path.string());
+  } catch (const YAML::Exception& error) {
+    return path.string() + ": " + error.what();
+  }
+  if (!root.IsMap()) return path.string() + ": expected a map of sections (camera, can, output, slam)";
+  const std::string file = path.string() + ": ";
+  for (const auto& entry : root) {
+    const auto name = entry.first.as<std::string>();
+    if (!kSections.contains(name)) return file + "'" + name + "' is not a known section";
+    if (name == "slam") continue;
+    if (!entry.second.IsMap()) return file + "'" + name + "' must be a map";
+    for (const auto& key : entry.second) {
+      const auto key_name = key.first.as<std::string>();
+      if (!kKeys.at(name).contains(key_name)) return file + name + "." + key_name + " is not a known parameter";
+    }
+  }
+
+  std::string error;
+  const auto check = [&](std::string e) {
+    if (error.empty() && !e.empty()) error = file + e;
+  };
+  const YAML::Node camera = root["camera"];
+  if (!camera || !camera["source"]) return file + "camera.source is missing (replay:<recording dir> or openni2:[uri])";
+  std::string source;
+  check(read(camera, "camera", "source", source));
+  if (!error.empty()) return error;
+  if (source.rfind("replay:", 0) == 0) {
+    config.camera_source = CameraSource::kReplay;
+    std::filesystem::path dir = source.substr(7);
+    if (dir.empty()) return file + "camera.source 'replay:' needs a recording directory";
+    if (dir.is_relative()) dir = path.parent_path() / dir;
+    config.camera_location = dir.lexically_normal().string();
+  } else if (source.rfind("openni2:", 0) == 0) {
+    config.camera_source = CameraSource::kOpenNI2;
+    config.camera_location = source.substr(8);
+  } else {
+    return file + "camera.source '" + source + "' must start with replay: or openni2:";
+  }
+  check(read(camera, "camera", "replay_rate", config.replay_rate));
+  check(read(camera, "camera", "max_frames", config.max_frames));
+  check(read(camera, "camera", "exit_after_end_s", config.exit_after_end_s));
+  if (error.empty() && !(config.replay_rate >= 0.0 && config.replay_rate <= 100.0)) {
+    error = file + "camera.replay_rate must be within 0 .. 100";
+  }
+
+  const YAML::Node can = root["can"];
+  if (can) {
+    check(read(can, "can", "interface", config.can_interface));
+    check(read(can, "can", "play_wheel_frames", config.play_wheel_frames));
+  }
+  if (error.empty() && (config.can_interface.empty() || config.can_interface.size() >= 16)) {
+    error = file + "can.interface must be a network interface name of 1 .. 15 characters";
+  }
+
+  const YAML::Node output = root["output"];
+  if (output) {
+    check(read(output, "output", "pose_rate_hz", config.output.pose_rate_hz));
+    check(read(output, "output", "heartbeat_rate_hz", config.output.heartbeat_rate_hz));
+    check(read(output, "output", "watchdog_timeout_s", config.output.watchdog_timeout_s));
+    check(read(output, "output", "lost_after_failed_frames", config.output.lost_after_failed_frames));
+    std::string dir;
+    check(read(output, "output", "dir", dir));
+    if (!dir.empty()) {
+      config.output_dir = dir;
+      if (config.output_dir.is_relative()) config.output_dir = path.parent_path() / config.output_dir;
+    }
+    check(read(output, "output", "max_trajectory_poses", config.max_trajectory_poses));
+  }
+  if (!error.empty()) return error;
+  if (auto range = nav::validate(config.output); !range.empty()) return file + "output." + range;
+  if (config.max_trajectory_poses < 1 || config.max_trajectory_poses > 10'000'000) {
+    return file + "output.max_trajectory_poses must be within 1 .. 10000000";
+  }
+  return {};
+}
+
+std::string describe_robot_config(const RobotConfig& config) {
+  std::ostringstream text;
+  text << "camera.source = "
+       << (config.camera_source == CameraSource::kReplay ? "replay:" : "openni2:") << config.camera_location << "\n"
+       << "camera.replay_rate = " << config.replay_rate << "  # x recorded rate, 0 = lossless\n"
+       << "camera.max_frames = " << config.max_frames << "  # 0 = all\n"
+       << "camera.exit_after_end_s = " << config.exit_after_end_s << " s  # negative = until SIGINT/SIGTERM\n"
+       << "can.interface = " << config.can_interface << "\n"
+       << "can.play_wheel_frames = " << (config.play_wheel_frames ? "true" : "false") << "\n"
+       << "output.pose_rate_hz = " << config.output.pose_rate_hz << " Hz\n"
+       << "output.heartbeat_rate_hz = " << config.output.heartbeat_rate_hz << " Hz\n"
+       << "output.watchdog_timeout_s = " << config.output.watchdog_timeout_s << " s\n"
+       << "output.lost_after_failed_frames = " << config.output.lost_after_failed_frames << "\n"
+       << "output.dir = " << config.output_dir.string() << "\n"
+       << "output.max_trajectory_poses = " << config.max_trajectory_poses << "\n";
+  return text.str();
+}
+
+}  // namespace rankslam::app

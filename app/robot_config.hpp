@@ -1,0 +1,52 @@
+#pragma once
+
+#include "rankslam/nav/pose_broadcaster.hpp"
+
+#include <filesystem>
+#include <string>
+
+namespace rankslam::app {
+
+/// Where the RGB-D frames come from.
+enum class CameraSource {
+  kReplay,   ///< A recording directory played through the replay driver.
+  kOpenNI2,  ///< An OpenNI2 device (first one, or a URI).
+};
+
+/// The robot configuration `rankslam run --config` reads (deploy/config/example-robot.yaml):
+/// which drivers to build and how the output behaves. The `slam:` section of the same file is
+/// read by load_slam_config.
+struct RobotConfig {
+  /// camera.source "replay:<dir>" or "openni2:[uri]".
+  CameraSource camera_source = CameraSource::kReplay;
+  /// Recording directory (replay; relative paths are taken from the YAML file's directory) or
+  /// device URI (OpenNI2; empty = first device).
+  std::string camera_location;
+  /// camera.replay_rate: multiple of the recorded frame rate; 0 = lossless, as fast as the loop runs.
+  double replay_rate = 1.0;
+  /// camera.max_frames: replay at most this many frames, 0 = all.
+  std::uint32_t max_frames = 0;
+  /// camera.exit_after_end_s: after the recording ends keep the output running (the watchdog
+  /// reports LOST) for this long, then stop as on SIGTERM; negative = until a signal.
+  double exit_after_end_s = 2.0;
+  /// can.interface: SocketCAN interface for pose output and wheel input (can0, vcan0, ...).
+  std::string can_interface = "can0";
+  /// can.play_wheel_frames: replay only; play the recording's can.log onto the bus on its
+  /// recorded timing, as the base controller would send it.
+  bool play_wheel_frames = true;
+  /// output.*: pose and heartbeat rates, watchdog.
+  nav::PoseOutputConfig output;
+  /// output.dir: where trajectory.txt, map.ply and report.json are flushed on exit (--out wins).
+  std::filesystem::path output_dir;
+  /// output.max_trajectory_poses: capacity of the trajectory kept for the flush, reserved at start.
+  std::uint32_t max_trajectory_poses = 100000;
+};
+
+/// Reads every section but `slam:`; unknown keys and bad values are errors naming the file and
+/// the key. Empty string on success.
+[[nodiscard]] std::string load_robot_config(const std::filesystem::path& path, RobotConfig& config);
+
+/// Effective values, one "name = value  # doc" line each.
+[[nodiscard]] std::string describe_robot_config(const RobotConfig& config);
+
+}  // namespace rankslam::app

@@ -1,0 +1,90 @@
+#pragma once
+
+#include "rankslam/hal/interfaces.hpp"
+#include "rankslam/nav/pose_frames.hpp"
+
+#include <Eigen/Geometry>
+
+#include <cstdint>
+#include <optional>
+#include <string>
+
+namespace rankslam::nav {
+
+/// Rates and watchdog of the pose output; fixed after construction.
+struct PoseOutputConfig {
+  double pose_rate_hz = 50.0;        ///< Hz; pose cycles (PoseXYYaw, PoseZRollPitch, PoseQuality) per second, 1 .. 200
+  double heartbeat_rate_hz = 10.0;   ///< Hz; Heartbeat frames per second, 0.5 .. 100
+  double watchdog_timeout_s = 0.5;   ///< s; no camera frame for this long reports LOST, 0.05 .. 10
+  int lost_after_failed_frames = 15; ///< consecutive failed registrations that report LOST, 1 .. 1000
+};
+
+/// Range check naming the offending field; empty when `config` is valid.
+[[nodiscard]] std::string validate(const PoseOutputConfig& config);
+
+/// The SLAM result of one camera frame, as the output needs it.
+struct PoseSample {
+  Eigen::Isometry3d T_map_base = Eigen::Isometry3d::Identity();
+  std::int64_t capture_ns = 0;          ///< capture time on the broadcaster's clock
+  std::uint32_t frame_sequence = 0;     ///< camera frame number
+  bool registered = true;               ///< false: registration failed, pose propagated
+  std::optional<std::uint8_t> inlier_percent;
+};
+
+/// Counters for the run report.
+struct PoseOutputCounters {
+  std::uint64_t pose_cycles = 0;    ///< pose cycles sent (three frames each)
+  std::uint64_t heartbeats = 0;
+  std::uint64_t lost_cycles = 0;    ///< pose cycles sent with status LOST
+  std::uint64_t tx_dropped = 0;     ///< frames the bus refused because its queue was full
+  std::uint64_t tx_faults = 0;      ///< frames not sent because the bus was down or gone
+};
+
+/// Sends the latest pose at a fixed rate and a heartbeat at another, on one hal::CanBus, timed
+/// by a hal::Clock. The camera watchdog runs here, in the sender, so a stalled SLAM loop or
+/// camera still produces heartbeats and the pose status turns LOST. Not thread-safe: one thread
+/// calls everything (the application hands samples over under its own lock). Never allocates.
+class PoseBroadcaster {
+ public:
+  PoseBroadcaster(const PoseOutputConfig& config, hal::CanBus& bus, const hal::Clock& clock);
+
+  /// A camera frame was processed; its arrival (now) feeds the watchdog.
+  void update(const PoseSample& sample);
+  /// Camera state for the heartbeat's fault bits.
+  void set_camera_state(bool fault, bool end_of_stream);
+  /// Sends every frame that is due now. Returns the time until the next one is due, ns.
+  [[nodiscard]] std::int64_t poll();
+
+  /// The status the next pose cycle will carry.
+  [[nodiscard]] PoseStatus status() const;
+  [[nodiscard]] const PoseOutputCounters& counters() const { return counters_; }
+
+ private:
+  void send(const hal::CanFrame& frame);
+  void send_pose_cycle(std::int64_t now_ns);
+  void send_heartbeat(std::int64_t now_ns);
+  [[nodiscard]] bool watchdog_expired(std::int64_t now_ns) const;
+
+  PoseOutputConfig config_;
+  hal::CanBus& bus_;
+  const hal::Clock& clock_;
+  std::int64_t pose_period_ns_;
+  std::int64_t heartbeat_period_ns_;
+  std::int64_t watchdog_ns_;
+  std::int64_t start_ns_;
+  std::int64_t next_pose_ns_;
+  std::int64_t next_heartbeat_ns_;
+  std::int64_t last_frame_ns_;
+  std::optional<PoseSample> latest_;
+  int consecutive_failures_ = 0;
+  std::uint8_t pose_counter_ = 0;
+  std::uint8_t heartbeat_counter_ = 0;
+  std::uint32_t frames_since_heartbeat_ = 0;
+  std::int64_t last_heartbeat_ns_;
+  bool dropped_since_heartbeat_ = false;
+  bool camera_fault_ = false;
+  bool end_of_stream_ = false;
+  PoseOutputCounters counters_;
+};
+
+}  // namespace rankslam::nav

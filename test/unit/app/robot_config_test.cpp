@@ -1,0 +1,93 @@
+#include "robot_config.hpp"
+
+#include <gtest/gtest.h>
+
+#include <filesystem>
+#include <fstream>
+#include <string>
+
+namespace rankslam::app {
+namespace {
+
+class RobotConfigTest : public ::testing::Test {
+ protected:
+  void SetUp() override {
+    dir_ = std::filesystem::path(::testing::TempDir()) / ("robot_config_" + std::to_string(::getpid()));
+    std::filesystem::create_directories(dir_);
+  }
+  void TearDown() override { std::filesystem::remove_all(dir_); }
+
+  std::filesystem::path write(const std::string& text) {
+    const auto path = dir_ / "robot.yaml";
+    std::ofstream(path) << text;
+    return path;
+  }
+
+  std::string load(const std::string& text, RobotConfig& config) { return load_robot_config(write(text), config); }
+
+  std::filesystem::path dir_;
+};
+
+TEST_F(RobotConfigTest, ReadsEverySectionAndResolvesRelativePaths) {
+  RobotConfig config;
+  const std::string error = load(R"(
+robot: {name: test}
+camera: {source: "replay:rec/one", replay_rate: 0, max_frames: 5, exit_after_end_s: -1}
+can: {interface: vcan0, play_wheel_frames: false}
+output: {pose_rate_hz: 25, heartbeat_rate_hz: 2, watchdog_timeout_s: 0.3, lost_after_failed_frames: 4, dir: out, max_trajectory_poses: 10}
+slam: {orb_features: 500}
+)", config);
+  ASSERT_EQ(error, "");
+  EXPECT_EQ(config.camera_source, CameraSource::kReplay);
+  EXPECT_EQ(config.camera_location, (dir_ / "rec/one").lexically_normal().string());
+  EXPECT_DOUBLE_EQ(config.replay_rate, 0.0);
+  EXPECT_EQ(config.max_frames, 5U);
+  EXPECT_DOUBLE_EQ(config.exit_after_end_s, -1.0);
+  EXPECT_EQ(config.can_interface, "vcan0");
+  EXPECT_FALSE(config.play_wheel_frames);
+  EXPECT_DOUBLE_EQ(config.output.pose_rate_hz, 25.0);
+  EXPECT_DOUBLE_EQ(config.output.heartbeat_rate_hz, 2.0);
+  EXPECT_DOUBLE_EQ(config.output.watchdog_timeout_s, 0.3);
+  EXPECT_EQ(config.output.lost_after_failed_frames, 4);
+  EXPECT_EQ(config.output_dir, dir_ / "out");
+  EXPECT_EQ(config.max_trajectory_poses, 10U);
+  EXPECT_NE(describe_robot_config(config).find("output.pose_rate_hz = 25 Hz"), std::string::npos);
+}
+
+TEST_F(RobotConfigTest, OpenNI2SourceTakesAnOptionalUri) {
+  RobotConfig config;
+  ASSERT_EQ(load("camera: {source: 'openni2:'}\n", config), "");
+  EXPECT_EQ(config.camera_source, CameraSource::kOpenNI2);
+  EXPECT_EQ(config.camera_location, "");
+  ASSERT_EQ(load("camera: {source: 'openni2:/data/a.oni'}\n", config), "");
+  EXPECT_EQ(config.camera_location, "/data/a.oni");
+}
+
+TEST_F(RobotConfigTest, ErrorsNameTheKey) {
+  const auto error_of = [&](const std::string& text) {
+    RobotConfig config;
+    return load(text, config);
+  };
+  EXPECT_NE(error_of("can: {interface: can0}\n").find("camera.source is missing"), std::string::npos);
+  EXPECT_NE(error_of("camera: {source: 'usb:1'}\n").find("camera.source 'usb:1'"), std::string::npos);
+  EXPECT_NE(error_of("camera: {source: 'replay:'}\n").find("needs a recording directory"), std::string::npos);
+  EXPECT_NE(error_of("camera: {source: 'replay:r', speed: 2}\n").find("camera.speed is not a known parameter"), std::string::npos);
+  EXPECT_NE(error_of("camera: {source: 'replay:r'}\nvideo: {}\n").find("'video' is not a known section"), std::string::npos);
+  EXPECT_NE(error_of("camera: {source: 'replay:r'}\noutput: {pose_rate_hz: 0}\n").find("output.pose_rate_hz"), std::string::npos);
+  EXPECT_NE(error_of("camera: {source: 'replay:r'}\noutput: {pose_rate_hz: fast}\n").find("output.pose_rate_hz is not a valid value"), std::string::npos);
+  EXPECT_NE(error_of("camera: {source: 'replay:r'}\ncan: {interface: ''}\n").find("can.interface"), std::string::npos);
+  EXPECT_NE(error_of("camera: {source: 'replay:r', replay_rate: -1}\n").find("camera.replay_rate"), std::string::npos);
+  EXPECT_NE(error_of("camera: [1, 2]\n").find("'camera' must be a map"), std::string::npos);
+  EXPECT_NE(error_of("camera: {source: 'replay:r'\n").find("robot.yaml"), std::string::npos);
+}
+
+TEST_F(RobotConfigTest, ExampleRobotConfigurationLoads) {
+  RobotConfig config;
+  const auto example = std::filesystem::path(RANKSLAM_SOURCE_DIR) / "deploy/config/example-robot.yaml";
+  ASSERT_EQ(load_robot_config(example, config), "");
+  EXPECT_EQ(config.can_interface, "can0");
+  EXPECT_DOUBLE_EQ(config.output.pose_rate_hz, 50.0);
+}
+
+}  // namespace
+}  // namespace rankslam::app

@@ -1,0 +1,234 @@
+// Checks the CAN log of a `rankslam run` against the trajectory `rankslam replay` wrote for the
+// same recording: every pose cycle decodes to the replayed pose of the frame it names within
+// 1 mm and 0.1°, cycles and heartbeats arrive at their configured rates, the watchdog reports
+// LOST once the camera stops while heartbeats go on, and the run flushed its outputs.
+//
+//   pose_log_check --log CANDUMP_L --reference TRAJ --recording DIR --run-out DIR
+//                  --pose-rate HZ --heartbeat-rate HZ --watchdog-s S
+#include "rankslam/eval/trajectory.hpp"
+#include "rankslam/hal/candump.hpp"
+#include "rankslam/nav/pose_frames.hpp"
+#include "rankslam/replay/recording.hpp"
+
+#include <algorithm>
+#include <cmath>
+#include <cstdio>
+#include <cstdlib>
+#include <filesystem>
+#include <fstream>
+#include <map>
+#include <numbers>
+#include <optional>
+#include <set>
+#include <string>
+#include <vector>
+
+namespace {
+
+using namespace rankslam;
+
+struct Cycle {
+  std::int64_t stamp_ns = 0;
+  nav::PoseXYYaw xy_yaw;
+  nav::PoseZRollPitch z_roll_pitch;
+  nav::PoseQuality quality;
+};
+
+int g_failures = 0;
+
+void fail(const std::string& message) {
+  std::printf("FAIL: %s\n", message.c_str());
+  ++g_failures;
+}
+
+double rotation_angle_deg(const Eigen::Isometry3d& a, const Eigen::Isometry3d& b) {
+  return Eigen::AngleAxisd(a.linear().transpose() * b.linear()).angle() * 180.0 / std::numbers::pi;
+}
+
+double yaw_difference_deg(double a, double b) { return std::abs(std::fmod(a - b + 540.0, 360.0) - 180.0); }
+
+}  // namespace
+
+int main(int argc, char** argv) {
+  std::map<std::string, std::string> arg;
+  for (int i = 1; i + 1 < argc; i += 2) arg[argv[i]] = argv[i + 1];
+  for (const char* key : {"--log", "--reference", "--recording", "--run-out", "--pose-rate", "--heartbeat-rate", "--watchdog-s"}) {
+    if (!arg.contains(key)) {
+      std::fprintf(stderr, "usage: %s --log F --reference F --recording D --run-out D --pose-rate HZ --heartbeat-rate HZ --watchdog-s S (missing %s)\n", argv[0], key);
+      return 2;
+    }
+  }
+  const double pose_rate_hz = std::stod(arg["--pose-rate"]);
+  const double heartbeat_rate_hz = std::stod(arg["--heartbeat-rate"]);
+  const double watchdog_s = std::stod(arg["--watchdog-s"]);
+
+  replay::Recording recording;
+  if (auto error = replay::open_recording(arg["--recording"], recording); !error.empty()) {
+    std::printf("FAIL: %s\n", error.c_str());
+    return 1;
+  }
+  const Eigen::Isometry3d T_base_cam = recording.calibration.rgb.T_base_cam;
+  auto reference = eval::read_tum_trajectory(arg["--reference"]);
+  if (!reference) {
+    std::printf("FAIL: %s\n", reference.error().c_str());
+    return 1;
+  }
+
+  // Parse the log into pose cycles and heartbeats.
+  std::ifstream log(arg["--log"]);
+  if (!log) {
+    std::printf("FAIL: cannot open %s\n", arg["--log"].c_str());
+    return 1;
+  }
+  std::vector<Cycle> cycles;
+  std::vector<std::pair<std::int64_t, nav::Heartbeat>> heartbeats;
+  std::optional<Cycle> partial;
+  int stage = 0;
+  int broken_cycles = 0;
+  std::string line;
+  while (std::getline(log, line)) {
+    const auto frame = hal::parse_candump_line(line);
+    if (!frame) continue;
+    if (frame->id == nav::kPoseXYYawId) {
+      if (stage != 0) ++broken_cycles;
+      partial = Cycle{};
+      partial->stamp_ns = frame->stamp_ns;
+      const auto decoded = nav::decode_pose_xy_yaw(*frame);
+      if (!decoded) { fail("undecodable PoseXYYaw: " + line); stage = 0; continue; }
+      partial->xy_yaw = *decoded;
+      stage = 1;
+    } else if (frame->id == nav::kPoseZRollPitchId) {
+      const auto decoded = nav::decode_pose_z_roll_pitch(*frame);
+      if (stage != 1 || !decoded || decoded->counter != partial->xy_yaw.counter) { ++broken_cycles; stage = 0; continue; }
+      partial->z_roll_pitch = *decoded;
+      stage = 2;
+    } else if (frame->id == nav::kPoseQualityId) {
+      const auto decoded = nav::decode_pose_quality(*frame);
+      if (stage != 2 || !decoded || decoded->counter != partial->xy_yaw.counter) { ++broken_cycles; stage = 0; continue; }
+      partial->quality = *decoded;
+      cycles.push_back(*partial);
+      stage = 0;
+    } else if (frame->id == nav::kHeartbeatId) {
+      const auto decoded = nav::decode_heartbeat(*frame);
+      if (!decoded) { fail("undecodable Heartbeat: " + line); continue; }
+      heartbeats.emplace_back(frame->stamp_ns, *decoded);
+    }
+  }
+  if (broken_cycles > 0) fail(std::to_string(broken_cycles) + " incomplete or interleaved pose cycles");
+  if (cycles.size() < 10) {
+    fail("only " + std::to_string(cycles.size()) + " pose cycles in the log");
+    return 1;
+  }
+  for (std::size_t i = 1; i < cycles.size(); ++i) {
+    if (cycles[i].xy_yaw.counter != (cycles[i - 1].xy_yaw.counter + 1) % nav::kPoseCounterModulus) {
+      fail("pose cycle counter jumps at cycle " + std::to_string(i));
+      break;
+    }
+  }
+
+  // Rates, from the kernel receive stamps of the capturing socket.
+  const double span_s = static_cast<double>(cycles.back().stamp_ns - cycles.front().stamp_ns) * 1e-9;
+  const double measured_pose_hz = static_cast<double>(cycles.size() - 1) / span_s;
+  std::printf("pose cycles %zu over %.2f s: %.2f Hz (configured %.1f Hz)\n", cycles.size(), span_s, measured_pose_hz, pose_rate_hz);
+  if (std::abs(measured_pose_hz - pose_rate_hz) > 0.1 * pose_rate_hz) fail("pose rate is not within 10 % of the configured rate");
+  if (heartbeats.size() >= 2) {
+    const double hb_span_s = static_cast<double>(heartbeats.back().first - heartbeats.front().first) * 1e-9;
+    const double measured_hb_hz = static_cast<double>(heartbeats.size() - 1) / hb_span_s;
+    std::printf("heartbeats %zu: %.2f Hz (configured %.1f Hz)\n", heartbeats.size(), measured_hb_hz, heartbeat_rate_hz);
+    if (std::abs(measured_hb_hz - heartbeat_rate_hz) > 0.1 * heartbeat_rate_hz) fail("heartbeat rate is not within 10 % of the configured rate");
+    for (std::size_t i = 1; i < heartbeats.size(); ++i) {
+      if (heartbeats[i].second.counter != static_cast<std::uint8_t>(heartbeats[i - 1].second.counter + 1U)) {
+        fail("heartbeat rolling counter jumps at heartbeat " + std::to_string(i));
+        break;
+      }
+    }
+  } else {
+    fail("fewer than two heartbeats");
+  }
+
+  // Poses against the replayed trajectory, frame by frame.
+  const auto& ref = reference.value();
+  if (ref.size() > 256) fail("the reference has more than 256 frames; the 8-bit frame counter is ambiguous");
+  // A reference that never leaves the origin would let a broken encoder pass.
+  double reach_m = 0.0;
+  for (const auto& pose : ref) reach_m = std::max(reach_m, pose.T_world_cam.translation().norm());
+  std::printf("reference: %zu frames, farthest %.3f m from the start\n", ref.size(), reach_m);
+  if (reach_m < 0.01) fail("the reference trajectory moves less than 1 cm (10 position steps); the comparison would prove nothing");
+  double max_position_m = 0.0;
+  double max_rotation_deg = 0.0;
+  double max_yaw_deg = 0.0;
+  std::set<std::uint8_t> frames_seen;
+  std::size_t compared = 0;
+  for (const Cycle& cycle : cycles) {
+    if (cycle.quality.status == nav::PoseStatus::kInitialising) continue;
+    const std::size_t index = cycle.quality.frame_counter;
+    if (index >= ref.size()) {
+      fail("pose cycle names frame " + std::to_string(index) + ", beyond the reference's " + std::to_string(ref.size()));
+      continue;
+    }
+    frames_seen.insert(cycle.quality.frame_counter);
+    const nav::PlanarPose decoded{cycle.xy_yaw.x_m, cycle.xy_yaw.y_m, cycle.z_roll_pitch.z_m,
+                                  cycle.z_roll_pitch.roll_deg, cycle.z_roll_pitch.pitch_deg, cycle.xy_yaw.yaw_deg};
+    const Eigen::Isometry3d T_map_base = nav::to_isometry(decoded);
+    const Eigen::Isometry3d expected = T_base_cam * ref[index].T_world_cam * T_base_cam.inverse();
+    const nav::PlanarPose expected_pose = nav::to_planar_pose(expected);
+    max_position_m = std::max(max_position_m, (T_map_base.translation() - expected.translation()).norm());
+    max_rotation_deg = std::max(max_rotation_deg, rotation_angle_deg(T_map_base, expected));
+    max_yaw_deg = std::max(max_yaw_deg, yaw_difference_deg(decoded.yaw_deg, expected_pose.yaw_deg));
+    ++compared;
+  }
+  std::printf("compared %zu cycles naming %zu of %zu frames: max position difference %.3f mm, max rotation %.4f deg, max yaw %.4f deg\n",
+              compared, frames_seen.size(), ref.size(), max_position_m * 1e3, max_rotation_deg, max_yaw_deg);
+  if (max_position_m > 0.001) fail("a decoded position is more than 1 mm from the replayed trajectory");
+  if (max_rotation_deg > 0.1 || max_yaw_deg > 0.1) fail("a decoded orientation is more than 0.1 deg from the replayed trajectory");
+  if (frames_seen.size() != ref.size()) fail("not every frame's pose was sent");
+
+  // After the last frame, the watchdog turns the status LOST while heartbeats continue.
+  std::optional<std::int64_t> first_lost_ns;
+  std::int64_t last_new_frame_ns = cycles.front().stamp_ns;
+  for (std::size_t i = 1; i < cycles.size(); ++i) {
+    if (cycles[i].quality.frame_counter != cycles[i - 1].quality.frame_counter) last_new_frame_ns = cycles[i].stamp_ns;
+  }
+  for (const Cycle& cycle : cycles) {
+    if (cycle.quality.status == nav::PoseStatus::kLost && cycle.stamp_ns > last_new_frame_ns) {
+      first_lost_ns = cycle.stamp_ns;
+      break;
+    }
+  }
+  if (!first_lost_ns) {
+    fail("no LOST pose cycle after the camera stopped");
+  } else {
+    const double delay_s = static_cast<double>(*first_lost_ns - last_new_frame_ns) * 1e-9;
+    std::printf("LOST %.3f s after the last new pose (watchdog %.2f s)\n", delay_s, watchdog_s);
+    if (delay_s < watchdog_s - 0.05) fail("LOST reported before the watchdog timeout");
+    if (delay_s > watchdog_s + 0.5) fail("LOST reported more than 0.5 s after the watchdog timeout");
+    if (cycles.back().quality.status != nav::PoseStatus::kLost) fail("the last pose cycle is not LOST");
+    int lost_heartbeats = 0;
+    for (const auto& [stamp_ns, heartbeat] : heartbeats) {
+      if (stamp_ns > *first_lost_ns && heartbeat.camera_watchdog && heartbeat.status == nav::PoseStatus::kLost) ++lost_heartbeats;
+    }
+    std::printf("heartbeats while LOST: %d\n", lost_heartbeats);
+    if (lost_heartbeats < 2) fail("heartbeats did not continue with the watchdog flag while LOST");
+  }
+
+  // The run flushed its own trajectory, equal to replay's, and the map.
+  const std::filesystem::path run_out = arg["--run-out"];
+  auto run_trajectory = eval::read_tum_trajectory(run_out / "trajectory.txt");
+  if (!run_trajectory) {
+    fail(run_trajectory.error());
+  } else if (run_trajectory.value().size() != ref.size()) {
+    fail("the run's trajectory has " + std::to_string(run_trajectory.value().size()) + " poses, replay's " + std::to_string(ref.size()));
+  } else {
+    double worst_m = 0.0;
+    for (std::size_t i = 0; i < ref.size(); ++i) {
+      worst_m = std::max(worst_m, (run_trajectory.value()[i].T_world_cam.translation() - ref[i].T_world_cam.translation()).norm());
+    }
+    std::printf("run trajectory vs replay trajectory: max %.6f mm\n", worst_m * 1e3);
+    if (worst_m > 1e-6) fail("the run's trajectory differs from replay's");
+  }
+  for (const char* name : {"map.ply", "report.json"}) {
+    if (!std::filesystem::is_regular_file(run_out / name)) fail(std::string("the run did not write ") + name);
+  }
+  std::printf("%s\n", g_failures == 0 ? "PASS" : "FAILED");
+  return g_failures == 0 ? 0 : 1;
+}

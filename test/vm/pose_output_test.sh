@@ -1,0 +1,70 @@
+#!/usr/bin/env bash
+# Acceptance test of `rankslam run` on a real kernel: a simulated corridor-loop recording runs
+# through `rankslam run` with the replay camera and the SocketCAN driver on vcan0, its wheel
+# frames played onto vcan0; candump captures the bus; pose_log_check then requires pose cycles
+# at the configured rate that decode to the trajectory `rankslam replay` wrote for the same
+# recording within 1 mm and 0.1°, LOST after the watchdog once the recording ends with the
+# heartbeat going on, and trajectory and map flushed after SIGTERM.
+#
+#   test/vm/pose_output_test.sh RANKSLAM POSE_LOG_CHECK WORK_DIR [FRAMES]
+#
+# WORK_DIR must be outside /tmp (the VM sees the host's root read-only, with its own /tmp).
+set -euo pipefail
+here="$(cd "$(dirname "${BASH_SOURCE[0]}")" && pwd)"
+rankslam="$1"
+checker="$2"
+work="$3"
+frames="${4:-60}"
+readonly pose_rate_hz=50 heartbeat_rate_hz=10 watchdog_s=0.4
+
+rm -rf "$work"
+mkdir -p "$work"
+"$rankslam" simulate corridor-loop --frames "$frames" --out "$work/recording" > "$work/simulate.log"
+"$rankslam" replay "$work/recording" --out "$work/replay" --quiet > "$work/replay.log"
+
+cat > "$work/robot.yaml" <<YAML
+camera:
+  source: replay:recording
+  replay_rate: 0            # lossless: the same frames as replay, however slow the emulated CPU
+  exit_after_end_s: -1      # keep sending until SIGTERM
+can:
+  interface: vcan0
+  play_wheel_frames: true
+output:
+  pose_rate_hz: $pose_rate_hz
+  heartbeat_rate_hz: $heartbeat_rate_hz
+  watchdog_timeout_s: $watchdog_s
+YAML
+
+# Inside the VM: capture the bus, run until the end of the recording, let the watchdog expire,
+# stop with SIGTERM, then check.
+cat > "$work/in-vm.sh" <<SH
+set -u
+out="\$RANKSLAM_VM_OUT"
+candump -L -n 100000 vcan0 > "\$out/bus.log" 2> "\$out/candump.err" &
+dump=\$!
+sleep 0.3
+"$rankslam" run --config "$work/robot.yaml" --out "\$out/run" > "\$out/run.log" 2>&1 &
+run=\$!
+for i in \$(seq 1 1200); do
+  grep -q "end of stream" "\$out/run.log" && break
+  kill -0 \$run 2>/dev/null || break
+  sleep 0.1
+done
+sleep 1.5
+kill -TERM \$run
+wait \$run
+code=\$?
+sleep 0.2
+kill \$dump
+cat "\$out/run.log"
+echo "rankslam run exit code \$code (130 expected after SIGTERM)"
+"$checker" --log "\$out/bus.log" --reference "$work/replay/trajectory.txt" --recording "$work/recording" \
+  --run-out "\$out/run" --pose-rate $pose_rate_hz --heartbeat-rate $heartbeat_rate_hz --watchdog-s $watchdog_s
+check=\$?
+grep -c "^(.*) vcan0 101#" "\$out/bus.log" | sed 's/^/wheel frames on the bus: /'
+grep -c "^(" "\$out/bus.log" | sed 's/^/frames on the bus: /'
+[ \$code -eq 130 ] || { echo "FAIL: rankslam run exit code \$code"; exit 1; }
+exit \$check
+SH
+exec "$here/run-in-vm.sh" /bin/sh "$work/in-vm.sh"
