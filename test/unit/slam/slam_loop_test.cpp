@@ -62,7 +62,9 @@ TEST_P(SlamLoopModes, TracksASidewaysMotionAlongATexturedWall) {
       EXPECT_TRUE(result.keyframe);
     } else {
       ASSERT_EQ(result.status, FrameStatus::kTracking) << "frame " << i << ": " << result.failure_reason;
-      EXPECT_GT(result.inliers, result.matches / 2) << "frame " << i;
+      // MSSE keeps a smaller core than a 2 cm RANSAC on noise-free synthetic images (the
+      // scale estimate is tiny); the pose below is what must be right.
+      EXPECT_GE(result.inliers, config.min_inliers) << "frame " << i;
     }
   }
   // The texture moves left in the image as the camera moves right (+x).
