@@ -3,6 +3,7 @@
 #include "rankslam/slam/config.hpp"
 
 #include <cstdint>
+#include <optional>
 #include <filesystem>
 #include <string>
 
@@ -36,6 +37,7 @@ struct EvalArgs {
 struct RunArgs {
   std::filesystem::path config;
   std::filesystem::path out;
+  std::string mode;
 };
 
 [[nodiscard]] int run_replay(const ReplayArgs& args);
@@ -46,6 +48,19 @@ struct RunArgs {
 /// The registration `rankslam replay` and `run` use without --mode: the most accurate one
 /// implemented (measured on fr1_rpy_head).
 inline constexpr slam::Mode kDefaultMode = slam::Mode::kPhotometric;
+
+/// The mode named `name` ("baseline", "photometric", "geometric", "fused"), if any.
+[[nodiscard]] inline std::optional<slam::Mode> parse_mode(const std::string& name) {
+  for (const auto mode : {slam::Mode::kBaseline, slam::Mode::kPhotometric, slam::Mode::kGeometric, slam::Mode::kFused}) {
+    if (name == slam::to_string(mode)) return mode;
+  }
+  return std::nullopt;
+}
+
+/// Whether this build implements `mode`.
+[[nodiscard]] inline bool mode_implemented(slam::Mode mode) {
+  return mode == slam::Mode::kBaseline || mode == slam::Mode::kPhotometric;
+}
 
 /// The scene `rankslam replay` simulates when given no recording.
 inline constexpr const char* kDefaultScene = "office";

@@ -49,6 +49,7 @@ int main(int argc, char** argv) {
   auto* run_cmd = app.add_subcommand("run", "Run live on the robot: sensors in, pose out over CAN");
   run_cmd->add_option("--config,-c", run.config, "Robot configuration (deploy/config/<robot>.yaml)")->required()->check(CLI::ExistingFile);
   run_cmd->add_option("--out,-o", run.out, "Where trajectory and map are flushed on exit");
+  run_cmd->add_option("--mode,-m", run.mode, "Registration: baseline, photometric, geometric or fused (default: best implemented)");
 
   try {
     app.parse(argc, argv);

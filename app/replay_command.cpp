@@ -47,15 +47,6 @@ void write_percentiles(JsonWriter& json, std::string_view key, const Percentiles
   json.begin_object(key).number("median", p.median).number("p90", p.p90).number("max", p.max).end_object();
 }
 
-std::optional<slam::Mode> parse_mode(const std::string& name) {
-  for (const auto mode : {slam::Mode::kBaseline, slam::Mode::kPhotometric, slam::Mode::kGeometric, slam::Mode::kFused}) {
-    if (name == slam::to_string(mode)) return mode;
-  }
-  return std::nullopt;
-}
-
-bool mode_implemented(slam::Mode mode) { return mode == slam::Mode::kBaseline || mode == slam::Mode::kPhotometric; }
-
 }  // namespace
 
 int run_replay(const ReplayArgs& args) {

@@ -201,6 +201,18 @@ int run_live(const RunArgs& args) {
     return kExitInput;
   }
   slam_config.mode = kDefaultMode;
+  if (!args.mode.empty()) {
+    const auto mode = parse_mode(args.mode);
+    if (!mode) {
+      std::cerr << "error: unknown mode '" << args.mode << "' (baseline, photometric, geometric, fused)\n";
+      return kExitUsage;
+    }
+    slam_config.mode = *mode;
+  }
+  if (!mode_implemented(slam_config.mode)) {
+    std::cerr << "error: mode '" << slam::to_string(slam_config.mode) << "' is not implemented yet\n";
+    return kExitNotAvailable;
+  }
   const fs::path out = args.out.empty() ? robot.output_dir : args.out;
   if (out.empty()) {
     std::cerr << "error: " << args.config.string() << ": no output directory (output.dir or --out)\n";

@@ -17,8 +17,6 @@ packages=("${build_packages[@]}")
 if [[ "${1:-}" == "--test" ]]; then
   packages+=("${test_packages[@]}")
 fi
-# Tests are built by default, so the product build needs GoogleTest too.
-packages+=(libgtest-dev libgmock-dev libbenchmark-dev)
 
 export DEBIAN_FRONTEND=noninteractive
 apt-get update -qq

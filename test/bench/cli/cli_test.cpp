@@ -70,7 +70,7 @@ TEST(Cli, EvalOfTheFixtureGivesTheBenchmarkAte) {
   const auto result = run("eval " + gt.string() + " " + est.string());
   ASSERT_EQ(result.exit_code, 0) << result.output;
   EXPECT_NE(result.output.find("ate.rmse_m"), std::string::npos) << result.output;
-  EXPECT_NE(result.output.find("0.0135"), std::string::npos) << result.output;
+  EXPECT_NE(result.output.find("ATE RMSE 0.0135 m"), std::string::npos) << result.output;
 }
 
 TEST(Cli, EvalOfAMalformedTrajectoryNamesFileAndLine) {
