@@ -5,7 +5,17 @@
 #include "rankslam/robust/rigid.hpp"
 #include "rankslam/robust/workspace.hpp"
 
+#include <vector>
+
 namespace rankslam::slam {
+namespace {
+
+// Below this inlier fraction the noise-normalised MSSE gets a second opinion (see estimate()).
+// Its own result is then often the trap described there; above it, never in the recordings
+// measured (fr1_rpy_head: median inlier fraction 0.89).
+constexpr double kSecondOpinionBelow = 0.75;
+
+}  // namespace
 
 struct MotionEstimator::Impl {
   Impl(const SlamConfig& config, std::size_t max_points)
@@ -14,11 +24,22 @@ struct MotionEstimator::Impl {
         model(capacity),
         workspace(capacity),
         source(3, capacity),
-        target(3, capacity) {
+        target(3, capacity),
+        refit_weights(max_points) {
     ransac.inlier_threshold = config.ransac_threshold_m;
     ransac.hypotheses = config.ransac_iterations;
     ransac.seed = static_cast<std::uint64_t>(config.seed);
+    msse.hypotheses = config.msse_hypotheses;
+    msse.min_inlier_fraction = config.msse_min_inlier_fraction;
+    msse.refine_iterations = config.msse_refine_iterations;
     msse.seed = static_cast<std::uint64_t>(config.seed);
+  }
+
+  /// Mean distance between where `a` and `b` put the source points.
+  [[nodiscard]] double disagreement(const Eigen::Isometry3d& a, const Eigen::Isometry3d& b, int n) const {
+    double sum = 0.0;
+    for (int i = 0; i < n; ++i) sum += (a * source.col(i) - b * source.col(i)).norm();
+    return n > 0 ? sum / n : 0.0;
   }
 
   Mode mode;
@@ -29,6 +50,7 @@ struct MotionEstimator::Impl {
   robust::MsseConfig msse;
   Eigen::Matrix3Xd source;
   Eigen::Matrix3Xd target;
+  std::vector<double> refit_weights;
 };
 
 MotionEstimator::MotionEstimator(const SlamConfig& config, std::size_t max_points)
@@ -37,26 +59,40 @@ MotionEstimator::MotionEstimator(const SlamConfig& config, std::size_t max_point
 MotionEstimator::~MotionEstimator() = default;
 
 MotionEstimate MotionEstimator::estimate(std::span<const Eigen::Vector3f> source,
-                                         std::span<const Eigen::Vector3f> target,
-                                         std::span<const double> sigma_m) {
+                                         std::span<const Eigen::Vector3f> target, std::span<const double> sigma_m,
+                                         const Eigen::Isometry3d* T_target_source_predicted) {
+  Impl& impl = *impl_;
   MotionEstimate estimate;
   const auto n = static_cast<int>(std::min(source.size(), target.size()));
-  if (n > impl_->capacity) {
+  if (n > impl.capacity) {
     estimate.failure_reason = "more matches than the estimator was set up for";
     return estimate;
   }
-  for (int i = 0; i < n; ++i) {
-    impl_->source.col(i) = source[static_cast<std::size_t>(i)].cast<double>();
-    impl_->target.col(i) = target[static_cast<std::size_t>(i)].cast<double>();
+  if (!sigma_m.empty() && static_cast<int>(sigma_m.size()) != n) {
+    estimate.failure_reason = "noise scales do not match the correspondences";
+    return estimate;
   }
-  if (impl_->model.set_correspondences(impl_->source.leftCols(n), impl_->target.leftCols(n)) !=
-      robust::RobustStatus::kOk) {
+  for (int i = 0; i < n; ++i) {
+    impl.source.col(i) = source[static_cast<std::size_t>(i)].cast<double>();
+    impl.target.col(i) = target[static_cast<std::size_t>(i)].cast<double>();
+  }
+  if (impl.model.set_correspondences(impl.source.leftCols(n), impl.target.leftCols(n)) != robust::RobustStatus::kOk) {
     estimate.failure_reason = "invalid correspondences";
     return estimate;
   }
-  const auto result = impl_->mode == Mode::kBaseline
-                          ? robust::estimate_ransac(impl_->model, impl_->ransac, impl_->workspace)
-                          : robust::estimate_msse(impl_->model, impl_->msse, impl_->workspace, sigma_m);
+  if (impl.mode == Mode::kBaseline) {
+    const auto result = robust::estimate_ransac(impl.model, impl.ransac, impl.workspace);
+    if (!result.ok()) {
+      estimate.failure_reason = robust::to_string(result.status);
+      return estimate;
+    }
+    estimate.ok = true;
+    estimate.T_target_source = result.model;
+    estimate.inliers = result.inlier_count;
+    return estimate;
+  }
+
+  const auto result = robust::estimate_msse(impl.model, impl.msse, impl.workspace, sigma_m);
   if (!result.ok()) {
     estimate.failure_reason = robust::to_string(result.status);
     return estimate;
@@ -64,6 +100,33 @@ MotionEstimate MotionEstimator::estimate(std::span<const Eigen::Vector3f> source
   estimate.ok = true;
   estimate.T_target_source = result.model;
   estimate.inliers = result.inlier_count;
+
+  // Ranking residuals in units of their noise makes far points (large σ) cheap inliers of almost
+  // any motion. Where many of them sit on one quantised depth level in both frames, a motion
+  // that shifts them in the image without changing their depth fits them near-exactly: the
+  // least-k-th-order fit picks it from a fraction of the matches and segmentation stops near k0
+  // (seen as 17 consecutive frames of 3 cm error in a simulated office, and in fr1_rpy_head
+  // frames 45-49). When the inlier fraction is low, MSSE ranks again in metres (noise weights in
+  // the refit only), and of the two motions the one closer to the constant-velocity prediction
+  // is kept. fr1_rpy_head ATE over seeds 1-6: mean 0.0319 m without, 0.0281 m with.
+  if (!sigma_m.empty() && T_target_source_predicted != nullptr && result.inlier_count < kSecondOpinionBelow * n) {
+    const Eigen::Isometry3d first = result.model;
+    const int first_inliers = result.inlier_count;
+    for (int i = 0; i < n; ++i) {
+      const double sigma = sigma_m[static_cast<std::size_t>(i)];
+      impl.refit_weights[static_cast<std::size_t>(i)] = 1.0 / (sigma * sigma);
+    }
+    if (impl.model.set_correspondences(
+            impl.source.leftCols(n), impl.target.leftCols(n),
+            std::span<const double>(impl.refit_weights.data(), static_cast<std::size_t>(n))) == robust::RobustStatus::kOk) {
+      const auto metric = robust::estimate_msse(impl.model, impl.msse, impl.workspace);
+      if (metric.ok() && impl.disagreement(metric.model, *T_target_source_predicted, n) <
+                             impl.disagreement(first, *T_target_source_predicted, n)) {
+        estimate.T_target_source = metric.model;
+        estimate.inliers = std::max(first_inliers, metric.inlier_count);
+      }
+    }
+  }
   return estimate;
 }
 

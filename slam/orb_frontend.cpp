@@ -8,7 +8,22 @@
 
 namespace rankslam::slam {
 
-OrbFrontend::OrbFrontend(const SlamConfig& config, const DepthCameraModel& camera)
+void PhotometricFeatures::reserve(std::size_t capacity) {
+  keypoints.reserve(capacity);
+  points_cam.reserve(capacity);
+  sigma_m.reserve(capacity);
+  descriptor_storage.create(static_cast<int>(capacity), 32, CV_8UC1);
+  descriptors = descriptor_storage.rowRange(0, 0);
+}
+
+void PhotometricFeatures::clear() {
+  keypoints.clear();
+  points_cam.clear();
+  sigma_m.clear();
+  descriptors = descriptor_storage.rowRange(0, 0);
+}
+
+OrbFrontend::OrbFrontend(const SlamConfig& config, const DepthCameraModel& camera, int fast_threshold)
     : camera_(camera),
       min_depth_m_(static_cast<float>(config.min_depth_m)),
       max_depth_m_(static_cast<float>(config.max_depth_m)),
@@ -16,17 +31,17 @@ OrbFrontend::OrbFrontend(const SlamConfig& config, const DepthCameraModel& camer
       keypoint_sigma_px_(static_cast<float>(config.keypoint_sigma_px)),
       scale_factor_(static_cast<float>(config.orb_scale_factor)),
       orb_(cv::ORB::create(config.orb_features, static_cast<float>(config.orb_scale_factor), config.orb_levels, 31, 0, 2,
-                           cv::ORB::HARRIS_SCORE, 31, config.orb_fast_threshold)) {
+                           cv::ORB::HARRIS_SCORE, 31, fast_threshold > 0 ? fast_threshold : config.orb_fast_threshold)) {
   all_keypoints_.reserve(static_cast<std::size_t>(config.orb_features) * 2);
 }
 
 void OrbFrontend::extract(const cv::Mat& gray, const cv::Mat& depth, PhotometricFeatures& features) {
   all_keypoints_.clear();
   orb_->detectAndCompute(gray, cv::noArray(), all_keypoints_, all_descriptors_);
-  features.keypoints.clear();
-  features.points_cam.clear();
-  features.sigma_m.clear();
-  features.descriptors.create(static_cast<int>(all_keypoints_.size()), 32, CV_8UC1);
+  features.clear();
+  if (features.descriptor_storage.rows < static_cast<int>(all_keypoints_.size())) {
+    features.descriptor_storage.create(static_cast<int>(all_keypoints_.size()), 32, CV_8UC1);
+  }
   int kept = 0;
   for (std::size_t i = 0; i < all_keypoints_.size(); ++i) {
     const cv::KeyPoint& keypoint = all_keypoints_[i];
@@ -47,11 +62,11 @@ void OrbFrontend::extract(const cv::Mat& gray, const cv::Mat& depth, Photometric
     const float lateral_m = keypoint_sigma_px_ * std::pow(scale_factor_, static_cast<float>(keypoint.octave)) * z_m /
                             static_cast<float>(camera_.calibration().fx);
     features.sigma_m.push_back(std::sqrt(axial_m * axial_m + 2.0F * lateral_m * lateral_m));
-    std::memcpy(features.descriptors.ptr(kept), all_descriptors_.ptr(static_cast<int>(i)), 32);
+    std::memcpy(features.descriptor_storage.ptr(kept), all_descriptors_.ptr(static_cast<int>(i)), 32);
     ++kept;
   }
-  // Shrinking the header keeps the allocation for the next frame.
-  features.descriptors = features.descriptors.rowRange(0, kept);
+  // A view of the storage: the next frame reuses its memory.
+  features.descriptors = features.descriptor_storage.rowRange(0, kept);
 }
 
 namespace {

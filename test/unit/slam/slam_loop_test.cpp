@@ -41,6 +41,15 @@ class WallSequence {
     return frame;
   }
 
+  // The same view with the lights off: a colour image of a few grey levels, and the IR image
+  // (registered to it) showing the texture.
+  hal::RgbdFrame dark_frame(int shift_px, std::uint32_t sequence) {
+    hal::RgbdFrame frame = this->frame(shift_px, sequence);
+    cv::cvtColor(frame.rgb, frame.ir, cv::COLOR_BGR2GRAY);
+    frame.rgb.convertTo(frame.rgb, CV_8U, 0.04);
+    return frame;
+  }
+
   static double metres(int shift_px) { return shift_px * kPlaneDepth_m / kFx; }
 
  private:
@@ -101,6 +110,125 @@ TEST_P(SlamLoopModes, FailedFramesPropagateAtConstantVelocityAndStayFinite) {
   result = loop.process(no_depth);
   EXPECT_EQ(result.status, FrameStatus::kFailed);
   EXPECT_NEAR(result.T_world_cam.translation().x(), 6 * speed_m, 0.005);
+}
+
+TEST_P(SlamLoopModes, AnImplausibleJumpFailsAndTrackingResumesOnTheReference) {
+  SlamConfig config;
+  config.mode = GetParam();
+  SlamLoop loop(config, pinhole());
+  WallSequence wall;
+  FrameResult result;
+  for (int i = 0; i < 5; ++i) result = loop.process(wall.frame(4 * i, static_cast<std::uint32_t>(i)));
+  ASSERT_EQ(result.status, FrameStatus::kTracking);
+  const double speed_m = WallSequence::metres(4);
+
+  // The view jumps by 120 px (0.48 m) within one frame: a hand-held camera cannot do that; the
+  // estimate is rejected and the pose does not jump.
+  result = loop.process(wall.frame(16 + 120, 5));
+  EXPECT_EQ(result.status, FrameStatus::kFailed);
+  EXPECT_FALSE(result.failure_reason.empty());
+  EXPECT_NEAR(result.T_world_cam.translation().x(), 5 * speed_m, 0.005);
+
+  // Back on course: registered against the reference again, at the true position.
+  result = loop.process(wall.frame(24, 6));
+  EXPECT_EQ(result.status, FrameStatus::kTracking) << result.failure_reason;
+  EXPECT_NEAR(result.T_world_cam.translation().x(), 6 * speed_m, 0.005);
+  EXPECT_TRUE(result.T_world_cam.matrix().allFinite());
+}
+
+TEST_P(SlamLoopModes, MissingOrMalformedImagesFailWithAReason) {
+  SlamConfig config;
+  config.mode = GetParam();
+  SlamLoop loop(config, pinhole());
+  WallSequence wall;
+  FrameResult result;
+  for (int i = 0; i < 3; ++i) result = loop.process(wall.frame(4 * i, static_cast<std::uint32_t>(i)));
+  ASSERT_EQ(result.status, FrameStatus::kTracking);
+
+  hal::RgbdFrame no_image = wall.frame(12, 3);
+  no_image.rgb.release();
+  result = loop.process(no_image);
+  EXPECT_EQ(result.status, FrameStatus::kFailed);
+  EXPECT_EQ(result.failure_reason, "no usable image");
+
+  hal::RgbdFrame wrong_depth = wall.frame(16, 4);
+  wrong_depth.depth = cv::Mat(240, 320, CV_16UC1, cv::Scalar(10000));
+  result = loop.process(wrong_depth);
+  EXPECT_EQ(result.status, FrameStatus::kFailed);
+  EXPECT_EQ(result.failure_reason, "no usable depth");
+
+  hal::RgbdFrame float_depth = wall.frame(20, 5);
+  float_depth.depth.convertTo(float_depth.depth, CV_32F);
+  result = loop.process(float_depth);
+  EXPECT_EQ(result.status, FrameStatus::kFailed);
+
+  hal::RgbdFrame odd_ir = wall.frame(24, 6);
+  odd_ir.ir = cv::Mat(10, 10, CV_32FC1, cv::Scalar(1.0F));  // ignored: not an IR image of this camera
+  result = loop.process(odd_ir);
+  EXPECT_EQ(result.status, FrameStatus::kTracking) << result.failure_reason;
+  EXPECT_EQ(result.image_source, ImageSource::kColour);
+  EXPECT_NEAR(result.T_world_cam.translation().x(), WallSequence::metres(24), 0.01);
+}
+
+TEST_P(SlamLoopModes, DarkColourImagesSwitchToInfrared) {
+  SlamConfig config;
+  config.mode = GetParam();
+  SlamLoop loop(config, pinhole());
+  WallSequence wall;
+  FrameResult result;
+  for (int i = 0; i <= 20; ++i) {
+    result = loop.process(wall.dark_frame(4 * i, static_cast<std::uint32_t>(i)));
+    EXPECT_EQ(result.image_source, ImageSource::kInfrared) << "frame " << i;
+    if (i > 0) {
+      ASSERT_EQ(result.status, FrameStatus::kTracking) << "frame " << i << ": " << result.failure_reason;
+    }
+  }
+  EXPECT_NEAR(result.T_world_cam.translation().x(), WallSequence::metres(80), 0.01);
+  EXPECT_NEAR(result.T_world_cam.translation().y(), 0.0, 0.01);
+}
+
+TEST_P(SlamLoopModes, WithoutTheSwitchDarkColourImagesFail) {
+  SlamConfig config;
+  config.mode = GetParam();
+  config.ir_switch_brightness = 0.0;
+  SlamLoop loop(config, pinhole());
+  WallSequence wall;
+  int failed = 0;
+  for (int i = 0; i <= 20; ++i) {
+    const FrameResult result = loop.process(wall.dark_frame(4 * i, static_cast<std::uint32_t>(i)));
+    EXPECT_EQ(result.image_source, ImageSource::kColour);
+    EXPECT_TRUE(result.T_world_cam.matrix().allFinite());
+    failed += result.status == FrameStatus::kFailed ? 1 : 0;
+  }
+  EXPECT_GT(failed, 15);
+}
+
+TEST_P(SlamLoopModes, ThePoseCarriesAcrossSwitchesBetweenColourAndInfrared) {
+  SlamConfig config;
+  config.mode = GetParam();
+  SlamLoop loop(config, pinhole());
+  WallSequence wall;
+  for (int i = 0; i <= 30; ++i) {
+    const auto sequence = static_cast<std::uint32_t>(i);
+    const bool lights_off = i >= 10 && i < 20;
+    hal::RgbdFrame frame = lights_off ? wall.dark_frame(4 * i, sequence) : wall.frame(4 * i, sequence);
+    if (i >= 20) frame.ir = wall.dark_frame(4 * i, sequence).ir;  // the IR stream stays on
+    const FrameResult result = loop.process(frame);
+    EXPECT_EQ(result.image_source, lights_off ? ImageSource::kInfrared : ImageSource::kColour) << "frame " << i;
+    if (i == 10) {
+      // Lights off at once: the colour image is black, so nothing links the first IR frame to
+      // the colour reference; constant velocity carries it and it anchors the IR tracking.
+      EXPECT_TRUE(result.status == FrameStatus::kTracking || result.status == FrameStatus::kFailed);
+    } else if (i > 0) {
+      ASSERT_EQ(result.status, FrameStatus::kTracking) << "frame " << i << ": " << result.failure_reason;
+    }
+    if (i == 11 || i == 20) {
+      // The first registered frame of the new image kind becomes its reference; at frame 20 the
+      // IR image links the colour frame to the IR reference.
+      EXPECT_TRUE(result.new_reference) << "frame " << i;
+    }
+    EXPECT_NEAR(result.T_world_cam.translation().x(), WallSequence::metres(4 * i), 0.01) << "frame " << i;
+  }
 }
 
 INSTANTIATE_TEST_SUITE_P(Modes, SlamLoopModes, ::testing::Values(Mode::kBaseline, Mode::kPhotometric),

@@ -28,11 +28,14 @@ class MotionEstimator {
   MotionEstimator& operator=(const MotionEstimator&) = delete;
 
   /// `sigma_m`, when not empty, is each correspondence's predicted residual noise; MSSE then
-  /// ranks and segments residuals in units of their own noise. RANSAC ignores it: its fixed
-  /// metric threshold is what the baseline stands for.
+  /// ranks and segments residuals in units of their own noise and weights the refit by 1/σ².
+  /// RANSAC ignores it: its fixed metric threshold is what the baseline stands for.
+  /// `T_target_source_predicted` (e.g. constant velocity) arbitrates when a low inlier fraction
+  /// calls for a second estimate (see the implementation).
   [[nodiscard]] MotionEstimate estimate(std::span<const Eigen::Vector3f> source,
                                         std::span<const Eigen::Vector3f> target,
-                                        std::span<const double> sigma_m = {});
+                                        std::span<const double> sigma_m = {},
+                                        const Eigen::Isometry3d* T_target_source_predicted = nullptr);
 
  private:
   struct Impl;

@@ -4,6 +4,8 @@
 #include "rankslam/hal/messages.hpp"
 #include "rankslam/slam/camera.hpp"
 #include "rankslam/slam/config.hpp"
+#include "rankslam/slam/icp.hpp"
+#include "rankslam/slam/image_source.hpp"
 #include "rankslam/slam/motion_estimator.hpp"
 #include "rankslam/slam/orb_frontend.hpp"
 #include "rankslam/slam/point_map.hpp"
@@ -20,7 +22,7 @@ namespace rankslam::slam {
 /// What the loop made of one frame.
 enum class FrameStatus : std::uint8_t {
   kFirstFrame,  ///< Defines the world frame.
-  kTracking,    ///< Registered against the previous frame.
+  kTracking,    ///< Registered against the tracking key-frame or, failing that, the previous frame.
   kFailed,      ///< Registration failed; the pose was propagated at constant velocity.
 };
 
@@ -35,9 +37,9 @@ enum class FrameStatus : std::uint8_t {
 
 /// Per-stage wall time of one frame, milliseconds.
 struct StageTimes {
-  static constexpr std::size_t kCount = 5;
+  static constexpr std::size_t kCount = 6;
   static constexpr std::array<std::string_view, kCount> kNames = {"preprocess", "features", "matching",
-                                                                   "estimation", "mapping"};
+                                                                   "estimation", "icp",      "mapping"};
   std::array<double, kCount> ms{};
 };
 
@@ -46,15 +48,33 @@ struct FrameResult {
   FrameStatus status = FrameStatus::kFirstFrame;
   /// Why the frame failed; empty when it did not.
   std::string_view failure_reason;
+  /// The image the features came from: infrared when the colour image was dark or absent.
+  ImageSource image_source = ImageSource::kColour;
   int features = 0;
   int matches = 0;
   int inliers = 0;
+  /// ICP refined the feature estimate (icp_mode on and the refinement accepted).
+  bool icp_refined = false;
+  /// The frame became the tracking key-frame the following frames register against.
+  bool new_reference = false;
+  /// The frame was added to the map as a key-frame.
   bool keyframe = false;
   StageTimes times;
 };
 
 /// The per-frame SLAM loop: one call per RGB-D frame returns its pose and status. Everything it
 /// needs is allocated at construction.
+///
+/// Tracking is frame to key-frame: each frame is registered against a reference frame, and
+/// becomes the reference itself once its inliers fall below `reference_min_overlap` of the
+/// reference's features. While a reference holds, errors do not add up frame by frame. When the
+/// reference gives no acceptable registration, the previous frame is tried. When both fail the
+/// pose is propagated at constant velocity and the reference kept, so the next frame that sees it
+/// snaps back; after a failure the previous frame (at its propagated pose) bridges a lost view.
+///
+/// Dark scenes: below `ir_switch_brightness` the features come from the pre-processed IR image.
+/// At the frame where the image kind changes, features of the old kind are extracted as well and
+/// registered against the reference, so the pose carries across the switch.
 class SlamLoop {
  public:
   SlamLoop(const SlamConfig& config, const hal::Calibration& calibration);
@@ -66,25 +86,70 @@ class SlamLoop {
   [[nodiscard]] const SlamConfig& config() const { return config_; }
 
  private:
+  /// Camera velocity in its own frame: angular (rad/s), then linear (m/s).
+  using Velocity = Eigen::Matrix<double, 6, 1>;
+
+  /// Features of one frame with its pose.
+  struct TrackedFrame {
+    PhotometricFeatures features;
+    VoxelCloud cloud;  ///< Only with ICP on.
+    Eigen::Isometry3d T_world_cam = Eigen::Isometry3d::Identity();
+    /// Velocity at the frame, for its rolling-shutter correction.
+    Velocity velocity = Velocity::Zero();
+    std::int64_t id = 0;  ///< Frame number: tells the ICP whether its target changed.
+  };
+
+  /// Chooses the image to detect features on: IR when the colour image is dark (with
+  /// hysteresis) or absent.
+  [[nodiscard]] ImageSource choose_source(const hal::RgbdFrame& frame);
+  /// The feature image of `source`, or null when the frame lacks it.
+  [[nodiscard]] const cv::Mat* feature_image(const hal::RgbdFrame& frame, ImageSource source);
+  /// Registers `current` against `target`: T_target_current. Adds to the matching and estimation
+  /// times.
+  [[nodiscard]] MotionEstimate register_frames(const PhotometricFeatures& target, const Velocity& target_velocity,
+                                               const PhotometricFeatures& current, const Velocity& current_velocity,
+                                               FrameResult& result, const Eigen::Isometry3d& predicted);
+  /// Checks an estimate of T_target_current; on success writes T_world_current, otherwise
+  /// `reason` (when still empty).
+  [[nodiscard]] bool accept(const MotionEstimate& estimate, const Eigen::Isometry3d& T_world_target,
+                            const Eigen::Isometry3d& T_world_previous, Eigen::Isometry3d& T_world_current,
+                            std::string_view& reason) const;
+  void refine_with_icp(const TrackedFrame& target, const TrackedFrame& current, FrameResult& result);
   void add_keyframe_to_map(const hal::RgbdFrame& frame, const Eigen::Isometry3d& T_world_cam);
 
   SlamConfig config_;
   DepthCameraModel camera_;
   OrbFrontend orb_;
+  OrbFrontend infrared_orb_;
   MutualHammingMatcher matcher_;
   MotionEstimator estimator_;
   PointMap map_;
+  InfraredFilter infrared_filter_;
+  IcpRefiner icp_;
 
   cv::Mat gray_;
-  PhotometricFeatures previous_;
-  PhotometricFeatures current_;
+  bool gray_valid_ = false;
+  cv::Mat infrared_;
+  bool infrared_valid_ = false;
+  bool infrared_active_ = false;
+
+  // Reference, previous and current frame; the reference and the previous frame may be the same
+  // one. Slot indices rotate instead of copying features.
+  std::array<TrackedFrame, 3> frames_;
+  int reference_ = -1;
+  int reference_inliers_ = 0;
+  int previous_ = -1;
+  std::int64_t frame_counter_ = 0;
+  double previous_stamp_s_ = 0.0;
+  /// Features of the other image kind, at a frame where the kind switches.
+  PhotometricFeatures bridge_;
+
   std::vector<FeatureMatch> matches_;
   std::vector<Eigen::Vector3f> source_points_;
   std::vector<Eigen::Vector3f> target_points_;
   std::vector<double> correspondence_sigma_m_;
 
-  bool has_previous_ = false;
-  Eigen::Isometry3d T_world_previous_ = Eigen::Isometry3d::Identity();
+  /// T_previous_current of the last registered frame: the constant-velocity model.
   Eigen::Isometry3d last_motion_ = Eigen::Isometry3d::Identity();
   Eigen::Isometry3d T_world_last_keyframe_ = Eigen::Isometry3d::Identity();
   int keyframes_ = 0;
