@@ -162,8 +162,10 @@ int run_replay(const ReplayArgs& args) {
 
   std::optional<eval::EvalResult> accuracy;
   std::optional<eval::Trajectory> ground_truth;
+  std::string no_accuracy_reason = "no ground truth";
   if (recording.ground_truth) {
     auto gt = eval::read_tum_trajectory(*recording.ground_truth);
+    no_accuracy_reason = "see the warning above";
     if (!gt) {
       std::cerr << "warning: " << gt.error() << "; no accuracy computed\n";
     } else {
@@ -231,7 +233,7 @@ int run_replay(const ReplayArgs& args) {
     }
     std::printf("\n");
   } else {
-    std::printf("ATE n/a (no ground truth)\n");
+    std::printf("ATE n/a (%s)\n", no_accuracy_reason.c_str());
   }
   std::printf("outputs in %s\n", args.out.string().c_str());
   return exit_code;

@@ -52,6 +52,16 @@ Eigen::Matrix<double, 6, 1> velocity_of(const Eigen::Isometry3d& motion, double 
   return velocity;
 }
 
+// Composing thousands of motions lets rounding errors pull a rotation matrix away from
+// orthonormal, and a scaled rotation makes poses grow geometrically. Renormalising through the
+// quaternion keeps every pose a rigid motion.
+Eigen::Isometry3d rigid(const Eigen::Isometry3d& pose) {
+  Eigen::Isometry3d out = Eigen::Isometry3d::Identity();
+  out.linear() = Eigen::Quaterniond(pose.rotation()).normalized().toRotationMatrix();
+  out.translation() = pose.translation();
+  return out;
+}
+
 bool valid_image(const cv::Mat& image, int type, int width, int height) {
   return image.type() == type && image.cols == width && image.rows == height;
 }
@@ -321,14 +331,18 @@ FrameResult SlamLoop::process(const hal::RgbdFrame& frame) {
     }
     if (target != nullptr) {
       if (config_.icp_mode != IcpMode::kOff) refine_with_icp(*target, tracked, result);
-      last_motion_ = previous.T_world_cam.inverse() * result.T_world_cam;
+      result.T_world_cam = rigid(result.T_world_cam);
+      last_motion_ = rigid(previous.T_world_cam.inverse() * result.T_world_cam);
+      failed_in_a_row_ = 0;
       result.status = FrameStatus::kTracking;
     } else {
-      // Constant-velocity propagation keeps the pose bounded and continuous through the gap; the
-      // reference stays, so the next good frame that sees it snaps back onto it.
+      // Constant-velocity propagation keeps the pose continuous through a short gap; the
+      // reference stays, so the next good frame that sees it snaps back onto it. A long gap
+      // holds the pose instead (see max_extrapolated_frames).
       result.status = FrameStatus::kFailed;
       result.failure_reason = reason;
-      result.T_world_cam = T_world_predicted;
+      if (++failed_in_a_row_ > config_.max_extrapolated_frames) last_motion_ = Eigen::Isometry3d::Identity();
+      result.T_world_cam = rigid(previous.T_world_cam * last_motion_);
       new_reference = false;
     }
   }

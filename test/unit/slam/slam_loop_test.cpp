@@ -112,6 +112,37 @@ TEST_P(SlamLoopModes, FailedFramesPropagateAtConstantVelocityAndStayFinite) {
   EXPECT_NEAR(result.T_world_cam.translation().x(), 6 * speed_m, 0.005);
 }
 
+TEST_P(SlamLoopModes, ALongFailureHoldsThePoseAfterTheExtrapolationLimit) {
+  SlamConfig config;
+  config.mode = GetParam();
+  config.max_extrapolated_frames = 10;
+  SlamLoop loop(config, pinhole());
+  WallSequence wall;
+  FrameResult result;
+  for (int i = 0; i < 5; ++i) result = loop.process(wall.frame(4 * i, static_cast<std::uint32_t>(i)));
+  ASSERT_EQ(result.status, FrameStatus::kTracking);
+  const double speed_m = WallSequence::metres(4);
+
+  // The lens stays covered for far longer than the limit.
+  hal::RgbdFrame blank = wall.frame(0, 0);
+  blank.rgb.setTo(cv::Scalar::all(0));
+  Eigen::Isometry3d last_extrapolated = Eigen::Isometry3d::Identity();
+  for (int i = 5; i < 2000; ++i) {
+    blank.sequence = static_cast<std::uint32_t>(i);
+    blank.stamp_s = i / 30.0;
+    result = loop.process(blank);
+    ASSERT_EQ(result.status, FrameStatus::kFailed) << "frame " << i;
+    ASSERT_TRUE(result.T_world_cam.matrix().allFinite()) << "frame " << i;
+    ASSERT_NEAR(result.T_world_cam.linear().determinant(), 1.0, 1e-9) << "frame " << i;
+    if (i == 14) last_extrapolated = result.T_world_cam;
+  }
+  // Frames 5..14 extrapolate at the last speed (the estimate of it is within a few per cent),
+  // the rest hold the pose of frame 14.
+  EXPECT_NEAR(last_extrapolated.translation().x(), (4 + 10) * speed_m, 0.015);
+  EXPECT_LT((result.T_world_cam.translation() - last_extrapolated.translation()).norm(), 1e-9);
+  EXPECT_LT(Eigen::AngleAxisd(result.T_world_cam.rotation().transpose() * last_extrapolated.rotation()).angle(), 1e-9);
+}
+
 TEST_P(SlamLoopModes, AnImplausibleJumpFailsAndTrackingResumesOnTheReference) {
   SlamConfig config;
   config.mode = GetParam();

@@ -95,6 +95,12 @@ struct SlamConfig {
   double max_step_rotation_deg = 45.0;
   double max_deviation_translation_m = 0.1;
   double max_deviation_rotation_deg = 10.0;
+  // Failed frames take the constant-velocity prediction for this many frames in a row (half a
+  // second at 30 Hz: long enough to bridge a blur or a passing occluder); after that the pose is
+  // held. Extrapolating further would carry a robot that stopped in front of a blank wall off at
+  // its last speed: on the simulated corridor loop, unbounded extrapolation over 400 failed
+  // frames reached 1e40 m.
+  int max_extrapolated_frames = 15;
   // Frame-to-key-frame tracking (see SlamLoop). ATE over fr1_rpy_head seeds 1-6 / simulated
   // dark office: 0.3: 0.046 / 0.014 m, 0.5: 0.028 / 0.011 m, 0.7: 0.036 / 0.026 m, 1.0 (a new
   // key-frame almost every frame): 0.039 / 0.059 m.
@@ -155,6 +161,8 @@ struct SlamConfig {
           "a frame whose motion differs more from the previous frame's is rejected as a failure");
     visit("max_deviation_rotation_deg", max_deviation_rotation_deg, 0.1, 180.0, "deg",
           "a frame whose rotation differs more from the previous frame's is rejected as a failure");
+    visit("max_extrapolated_frames", max_extrapolated_frames, 0, 1000, "",
+          "failed frames in a row that take the constant-velocity prediction; later ones hold the pose");
     visit("reference_min_overlap", reference_min_overlap, 0.0, 1.0, "",
           "a frame becomes the tracking key-frame when its inliers fall below this fraction of the first frame's against the key-frame");
     visit("keyframe_translation_m", keyframe_translation_m, 0.01, 10.0, "m", "translation that starts a map key-frame");

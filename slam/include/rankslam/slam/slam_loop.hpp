@@ -151,6 +151,8 @@ class SlamLoop {
 
   /// T_previous_current of the last registered frame: the constant-velocity model.
   Eigen::Isometry3d last_motion_ = Eigen::Isometry3d::Identity();
+  /// Failed frames since the last registered one.
+  int failed_in_a_row_ = 0;
   Eigen::Isometry3d T_world_last_keyframe_ = Eigen::Isometry3d::Identity();
   int keyframes_ = 0;
   std::mt19937 map_sampler_;
