@@ -18,7 +18,12 @@ std::string load_slam_config(const std::filesystem::path& path, slam::SlamConfig
   if (!section) return {};
   if (!section.IsMap()) return path.string() + ": 'slam' must be a map of parameters";
   std::string error;
-  std::set<std::string> known;
+  std::set<std::string> known{"icp_mode"};
+  if (const YAML::Node icp = section["icp_mode"]) {
+    const auto parsed = icp.IsScalar() ? slam::parse_icp_mode(icp.Scalar()) : std::nullopt;
+    if (!parsed) return path.string() + ": slam.icp_mode must be off, point_to_point or point_to_plane";
+    config.icp_mode = *parsed;
+  }
   config.visit_parameters([&](const char* name, auto& field, auto min, auto max, const char* /*unit*/,
                               const char* /*doc*/) {
     known.insert(name);
@@ -51,6 +56,7 @@ std::string load_slam_config(const std::filesystem::path& path, slam::SlamConfig
 std::string describe_slam_config(slam::SlamConfig config) {
   std::ostringstream text;
   text << "slam.mode = " << slam::to_string(config.mode) << "\n";
+  text << "slam.icp_mode = " << slam::to_string(config.icp_mode) << "  # ICP refinement after the feature registration\n";
   config.visit_parameters([&](const char* name, auto& field, auto, auto, const char* unit, const char* doc) {
     text << "slam." << name << " = " << field << (unit[0] != '\0' ? " " : "") << unit << "  # " << doc << "\n";
   });
@@ -60,6 +66,7 @@ std::string describe_slam_config(slam::SlamConfig config) {
 std::string slam_config_json(slam::SlamConfig config) {
   std::ostringstream text;
   text << "\"mode\": \"" << slam::to_string(config.mode) << "\"";
+  text << ", \"icp_mode\": \"" << slam::to_string(config.icp_mode) << "\"";
   config.visit_parameters([&](const char* name, auto& field, auto, auto, const char*, const char*) {
     text << ", \"" << name << "\": " << field;
   });
