@@ -9,7 +9,7 @@ build_packages=(
   libnanoflann-dev libcli11-dev libyaml-cpp-dev
 )
 test_packages=(
-  libgtest-dev libgmock-dev libbenchmark-dev libopencv-contrib-dev
+  libgtest-dev libgmock-dev libbenchmark-dev libopencv-contrib-dev libpcl-dev
   qemu-system-x86 busybox-static can-utils iproute2
 )
 

@@ -1,0 +1,543 @@
+#include "rankslam/geometry/cloud.hpp"
+
+#include <algorithm>
+#include <cmath>
+#include <limits>
+
+#include <Eigen/Eigenvalues>
+
+#include "rankslam/geometry/point_grid.hpp"
+
+namespace rankslam::geometry {
+
+namespace {
+
+// Lens distortion changes the pixel footprint of a metric radius by a few per cent over the
+// image (fr1's barrel distortion shrinks it toward the corners); the window is widened by this
+// factor so that it always covers the radius.
+constexpr float kWindowMargin = 1.05F;
+// Voxelisation retries with a 25 % larger leaf when the voxels exceed the capacity.
+constexpr int kVoxelAttempts = 6;
+constexpr float kLeafGrowth = 1.25F;
+
+// ⌊v⌋ without branches for the per-pixel loop, exact for |v| < 2^20: a pass-through point
+// (≤ 20 m, ray slope < 10) over a leaf ≥ 1 mm stays far inside that.
+inline std::int32_t fast_floor(float v) {
+  constexpr double kOffset = 1048576.0;
+  return static_cast<std::int32_t>(static_cast<double>(v) + kOffset) - 1048576;
+}
+
+struct DepthRange {
+  float min_m;
+  float max_m;
+  float metres_per_unit;
+};
+
+// Camera-frame point of pixel (u, v) if its depth is valid and inside the pass-through.
+inline bool point_at(const cv::Mat& depth, const slam::DepthCameraModel& camera,
+                     const DepthRange& range, int u, int v, Eigen::Vector3f& p) {
+  const std::uint16_t raw = depth.ptr<std::uint16_t>(v)[u];
+  if (raw == 0) return false;
+  const float z = static_cast<float>(raw) * range.metres_per_unit;
+  if (z < range.min_m || z > range.max_m) return false;
+  p = camera.back_project(u, v, z);
+  return true;
+}
+
+}  // namespace
+
+void BlockImage::reserve(int image_width, int image_height) {
+  width = (std::max(0, image_width) + kBlock - 1) / kBlock;
+  height = (std::max(0, image_height) + kBlock - 1) / kBlock;
+  stride = width + kPad;
+  const auto n = static_cast<std::size_t>(stride) * static_cast<std::size_t>(height);
+  x.assign(n, 0.0F);
+  y.assign(n, 0.0F);
+  z.assign(n, 0.0F);
+  weight.assign(n, 0.0F);
+  for (std::vector<float>* bound : {&x_min, &x_max, &y_min, &y_max, &z_min, &z_max}) {
+    bound->assign(n, 0.0F);
+  }
+  edge_weight.assign(n, 0.0F);
+  first_part.assign(n, -1);
+  parts.assign(2 * n, Part{});
+  part_count = 0;
+}
+
+namespace {
+
+// Weighted moments of points relative to the normal's centre.
+struct Moments {
+  float n = 0.0F;
+  float sx = 0.0F, sy = 0.0F, sz = 0.0F;
+  float sxx = 0.0F, sxy = 0.0F, sxz = 0.0F, syy = 0.0F, syz = 0.0F, szz = 0.0F;
+
+  void add(const Eigen::Vector3f& d, float w) {
+    n += w;
+    sx += w * d.x();
+    sy += w * d.y();
+    sz += w * d.z();
+    sxx += w * d.x() * d.x();
+    sxy += w * d.x() * d.y();
+    sxz += w * d.x() * d.z();
+    syy += w * d.y() * d.y();
+    syz += w * d.y() * d.z();
+    szz += w * d.z() * d.z();
+  }
+};
+
+// A block's share of a sphere of squared radius r2 around the centre, from the nearest and
+// farthest squared distances of its bounding box: 1 inside, 0 outside, in between the share of
+// that range inside the radius (a soft boundary about one block wide).
+float soft_share(float near2, float far2, float r2) {
+  return std::clamp((r2 - near2) / std::max(far2 - near2, 1e-12F), 0.0F, 1.0F);
+}
+
+using Lanes = Eigen::Array4f;  // one SSE / NEON register
+
+Lanes soft_share(const Lanes& near2, const Lanes& far2, float r2) {
+  return ((r2 - near2) / (far2 - near2).max(1e-12F)).max(0.0F).min(1.0F);
+}
+
+// Squared distances from 0 to the nearest and farthest points of the interval [lo, hi], per lane.
+EIGEN_ALWAYS_INLINE void interval_range(const Lanes& lo, const Lanes& hi, Lanes& near2, Lanes& far2) {
+  const Lanes near = lo.max(0.0F).max(-hi);
+  const Lanes far = lo.abs().max(hi.abs());
+  near2 += near * near;
+  far2 += far * far;
+}
+
+// Adds a part of a depth-edge block by its share of the sphere.
+inline void add_part(const BlockImage::Part& part, const Eigen::Vector3f& center, float r2,
+                     Moments& m) {
+  if (part.weight == 0.0F) return;
+  const Eigen::Vector3f lo = part.min - center;
+  const Eigen::Vector3f hi = part.max - center;
+  const float near2 = lo.cwiseMax(Eigen::Vector3f::Zero()).cwiseMax(-hi).squaredNorm();
+  if (near2 > r2) return;
+  const float far2 = lo.cwiseAbs().cwiseMax(hi.cwiseAbs()).squaredNorm();
+  m.add(part.mean - center, part.weight * soft_share(near2, far2, r2));
+}
+
+}  // namespace
+
+int organised_normal(const BlockImage& blocks, float fx, const Eigen::Vector3f& center,
+                     const Eigen::Vector2f& pixel, float radius_m, int samples_per_axis,
+                     Eigen::Vector3f& normal, float* curvature) {
+  if (!(center.z() > 0.0F) || !(radius_m > 0.0F) || samples_per_axis < 1 || blocks.width < 1) {
+    return 0;
+  }
+  constexpr auto kBlockF = static_cast<float>(BlockImage::kBlock);
+  const float half_blocks = radius_m * fx / center.z() * kWindowMargin / kBlockF;
+  const int stride = std::max(
+      1, static_cast<int>(std::lround(2.0F * half_blocks / static_cast<float>(samples_per_axis))));
+  const int steps = static_cast<int>(std::ceil(half_blocks)) / stride;
+  const int bu = static_cast<int>(pixel.x() / kBlockF);
+  const int bv = static_cast<int>(pixel.y() / kBlockF);
+  const float r2 = radius_m * radius_m;
+
+  Moments m;
+  if (stride == 1) {
+    // Rows of the window 4 blocks at a time (the rows' padding keeps the reads in bounds).
+    const Lanes lane_index(0.0F, 1.0F, 2.0F, 3.0F);
+    Lanes n = Lanes::Zero(), sx = Lanes::Zero(), sy = Lanes::Zero(), sz = Lanes::Zero();
+    Lanes sxx = Lanes::Zero(), sxy = Lanes::Zero(), sxz = Lanes::Zero(), syy = Lanes::Zero(),
+          syz = Lanes::Zero(), szz = Lanes::Zero();
+    // The radius' pixel footprint is a disc: each row of the window only as wide as the disc
+    // there (plus a block for the blocks' own extent).
+    const float reach = half_blocks + 1.0F;
+    for (int v = std::max(bv - steps, 0); v <= std::min(bv + steps, blocks.height - 1); ++v) {
+      const auto dv = static_cast<float>(v - bv);
+      const int span = static_cast<int>(std::sqrt(std::max(0.0F, reach * reach - dv * dv)));
+      const int u_lo = std::max(bu - span, 0);
+      const int u_hi = std::min(bu + span, blocks.width - 1);
+      for (int u = u_lo; u <= u_hi; u += 4) {
+        const std::size_t b = blocks.index(u, v);
+        const Lanes w0 = Eigen::Map<const Lanes>(blocks.weight.data() + b) *
+                         (lane_index < static_cast<float>(u_hi - u + 1)).cast<float>();
+        const Lanes dx = Eigen::Map<const Lanes>(blocks.x.data() + b) - center.x();
+        const Lanes dy = Eigen::Map<const Lanes>(blocks.y.data() + b) - center.y();
+        const Lanes dz = Eigen::Map<const Lanes>(blocks.z.data() + b) - center.z();
+        Lanes near2 = Lanes::Zero();
+        Lanes far2 = Lanes::Zero();
+        interval_range(Eigen::Map<const Lanes>(blocks.x_min.data() + b) - center.x(),
+                       Eigen::Map<const Lanes>(blocks.x_max.data() + b) - center.x(), near2, far2);
+        interval_range(Eigen::Map<const Lanes>(blocks.y_min.data() + b) - center.y(),
+                       Eigen::Map<const Lanes>(blocks.y_max.data() + b) - center.y(), near2, far2);
+        interval_range(Eigen::Map<const Lanes>(blocks.z_min.data() + b) - center.z(),
+                       Eigen::Map<const Lanes>(blocks.z_max.data() + b) - center.z(), near2, far2);
+        const Lanes w = w0 * soft_share(near2, far2, r2);
+        n += w;
+        sx += w * dx;
+        sy += w * dy;
+        sz += w * dz;
+        sxx += w * dx * dx;
+        sxy += w * dx * dy;
+        sxz += w * dx * dz;
+        syy += w * dy * dy;
+        syz += w * dy * dz;
+        szz += w * dz * dz;
+        const Lanes edges = Eigen::Map<const Lanes>(blocks.edge_weight.data() + b);
+        if ((edges > 0.0F).any()) {
+          for (int k = 0; k < 4 && u + k <= u_hi; ++k) {
+            if (edges(k) > 0.0F && near2(k) <= r2) {
+              const auto first = static_cast<std::size_t>(blocks.first_part[b + static_cast<std::size_t>(k)]);
+              add_part(blocks.parts[first], center, r2, m);
+              add_part(blocks.parts[first + 1], center, r2, m);
+            }
+          }
+        }
+      }
+    }
+    m.n += n.sum();
+    m.sx += sx.sum();
+    m.sy += sy.sum();
+    m.sz += sz.sum();
+    m.sxx += sxx.sum();
+    m.sxy += sxy.sum();
+    m.sxz += sxz.sum();
+    m.syy += syy.sum();
+    m.syz += syz.sum();
+    m.szz += szz.sum();
+  } else {
+    // A near point's wide window: every stride-th block.
+    for (int j = -steps; j <= steps; ++j) {
+      const int v = bv + j * stride;
+      if (v < 0 || v >= blocks.height) continue;
+      for (int i = -steps; i <= steps; ++i) {
+        const int u = bu + i * stride;
+        if (u < 0 || u >= blocks.width) continue;
+        const std::size_t b = blocks.index(u, v);
+        const Eigen::Vector3f lo = Eigen::Vector3f(blocks.x_min[b], blocks.y_min[b], blocks.z_min[b]) - center;
+        const Eigen::Vector3f hi = Eigen::Vector3f(blocks.x_max[b], blocks.y_max[b], blocks.z_max[b]) - center;
+        const float near2 = lo.cwiseMax(Eigen::Vector3f::Zero()).cwiseMax(-hi).squaredNorm();
+        if (near2 > r2) continue;
+        if (blocks.edge_weight[b] > 0.0F) {
+          const auto first = static_cast<std::size_t>(blocks.first_part[b]);
+          add_part(blocks.parts[first], center, r2, m);
+          add_part(blocks.parts[first + 1], center, r2, m);
+          continue;
+        }
+        const float w = blocks.weight[b];
+        if (w == 0.0F) continue;
+        const float far2 = lo.cwiseAbs().cwiseMax(hi.cwiseAbs()).squaredNorm();
+        m.add(blocks.mean(b) - center, w * soft_share(near2, far2, r2));
+      }
+    }
+  }
+  const int count = static_cast<int>(m.n);
+  if (count < 3) return count;
+  const Eigen::Vector3f mean = Eigen::Vector3f(m.sx, m.sy, m.sz) / m.n;
+  Eigen::Matrix3f cov;
+  cov << m.sxx / m.n, m.sxy / m.n, m.sxz / m.n, m.sxy / m.n, m.syy / m.n, m.syz / m.n,
+      m.sxz / m.n, m.syz / m.n, m.szz / m.n;
+  cov -= mean * mean.transpose();
+  Eigen::SelfAdjointEigenSolver<Eigen::Matrix3f> solver;
+  solver.computeDirect(cov);
+  Eigen::Vector3f result = solver.eigenvectors().col(0);
+  const float length = result.norm();
+  if (!(length > 0.0F) || !std::isfinite(length)) return 0;
+  result /= length;
+  // Toward the camera at the origin: (0 − p)·n > 0.
+  if (result.dot(center) > 0.0F) result = -result;
+  normal = result;
+  if (curvature != nullptr) {
+    const float total = solver.eigenvalues().sum();
+    *curvature = total > 0.0F ? std::max(0.0F, solver.eigenvalues()(0)) / total : 0.0F;
+  }
+  return count;
+}
+
+float organised_resolution(const cv::Mat& depth, const slam::DepthCameraModel& camera, int stride,
+                           float min_depth_m, float max_depth_m) {
+  const DepthRange range{min_depth_m, max_depth_m, camera.metres(1)};
+  stride = std::max(1, stride);
+  double sum = 0.0;
+  long count = 0;
+  for (int v = 1; v + 1 < depth.rows; v += stride) {
+    for (int u = 1; u + 1 < depth.cols; u += stride) {
+      Eigen::Vector3f p;
+      if (!point_at(depth, camera, range, u, v, p)) continue;
+      float best = std::numeric_limits<float>::infinity();
+      for (int dv = -1; dv <= 1; ++dv) {
+        for (int du = -1; du <= 1; ++du) {
+          if (du == 0 && dv == 0) continue;
+          Eigen::Vector3f q;
+          if (!point_at(depth, camera, range, u + du, v + dv, q)) continue;
+          best = std::min(best, (q - p).squaredNorm());
+        }
+      }
+      if (std::isfinite(best)) {
+        sum += std::sqrt(static_cast<double>(best));
+        ++count;
+      }
+    }
+  }
+  return count > 0 ? static_cast<float>(sum / static_cast<double>(count)) : 0.0F;
+}
+
+std::string CloudPreprocessor::configure(const slam::DepthCameraModel& camera,
+                                         const GeometryConfig& config, int max_sampled_points) {
+  max_points_ = 0;
+  if (const std::string_view bad = config.validate(); !bad.empty()) {
+    return "geometry config: " + std::string(bad) + " is out of range";
+  }
+  if (camera.width() < 3 || camera.height() < 3) {
+    return "geometry: depth camera model has no image size (" + std::to_string(camera.width()) +
+           "x" + std::to_string(camera.height()) + ")";
+  }
+  if (max_sampled_points < 3 || max_sampled_points > 10'000'000) {
+    return "geometry: max_sampled_points " + std::to_string(max_sampled_points) +
+           " is out of range [3, 10000000]";
+  }
+  camera_ = camera;
+  config_ = config;
+  std::size_t slots = 64;
+  while (slots < 2 * static_cast<std::size_t>(max_sampled_points)) slots *= 2;
+  slots_.assign(slots, Slot{});
+  recent_.assign(kRecentSlots, Slot{});
+  mask_ = slots - 1;
+  generation_ = 0;
+  accumulators_.assign(static_cast<std::size_t>(max_sampled_points), Accumulator{});
+  blocks_.reserve(camera.width(), camera.height());
+  block_sums_.assign(static_cast<std::size_t>(blocks_.width) * static_cast<std::size_t>(blocks_.height),
+                     BlockAccumulator{});
+  max_points_ = max_sampled_points;
+  return {};
+}
+
+SampledCloud CloudPreprocessor::make_cloud() const {
+  SampledCloud cloud;
+  const auto n = static_cast<std::size_t>(max_points_);
+  cloud.points.assign(n, Eigen::Vector3f::Zero());
+  cloud.normals.assign(n, Eigen::Vector3f::Zero());
+  cloud.pixels.assign(n, Eigen::Vector2f::Zero());
+  cloud.curvature.assign(n, 0.0F);
+  cloud.dense_counts.assign(n, 0);
+  return cloud;
+}
+
+bool CloudPreprocessor::voxelise(const cv::Mat& depth, float leaf_m, int& voxels,
+                                 int& dense_points) {
+  if (++generation_ == 0) {
+    for (Slot& slot : slots_) slot.generation = 0;
+    for (Slot& slot : recent_) slot.generation = 0;
+    generation_ = 1;
+  }
+  voxels = 0;
+  dense_points = 0;
+  std::fill(block_sums_.begin(), block_sums_.end(), BlockAccumulator{});
+  const float inverse_leaf = 1.0F / leaf_m;
+  const float metres_per_unit = camera_.metres(1);
+  const auto min_m = static_cast<float>(config_.min_depth_m);
+  const auto max_m = static_cast<float>(config_.max_depth_m);
+  for (int v = 0; v < depth.rows; ++v) {
+    const std::uint16_t* row = depth.ptr<std::uint16_t>(v);
+    BlockAccumulator* block_row =
+        block_sums_.data() + static_cast<std::ptrdiff_t>(v / BlockImage::kBlock) * blocks_.width;
+    std::int32_t last_x = 0, last_y = 0, last_z = 0;
+    int last_voxel = -1;
+    for (int u = 0; u < depth.cols; ++u) {
+      const std::uint16_t raw = row[u];
+      if (raw == 0) continue;
+      const float z = static_cast<float>(raw) * metres_per_unit;
+      if (z < min_m || z > max_m) continue;
+      const Eigen::Vector3f p = camera_.back_project(u, v, z);
+      const std::int32_t x = fast_floor(p.x() * inverse_leaf);
+      const std::int32_t y = fast_floor(p.y() * inverse_leaf);
+      const std::int32_t zc = fast_floor(p.z() * inverse_leaf);
+      int voxel = last_voxel;
+      if (voxel < 0 || x != last_x || y != last_y || zc != last_z) {
+        const std::uint32_t hash = hash_cell(x, y, zc);
+        Slot& recent = recent_[hash & (kRecentSlots - 1)];
+        if (recent.generation == generation_ && recent.x == x && recent.y == y && recent.z == zc) {
+          voxel = recent.voxel;
+        } else {
+        std::size_t s = hash & mask_;
+        for (;;) {
+          Slot& slot = slots_[s];
+          if (slot.generation != generation_) {
+            if (voxels == max_points_) return false;
+            slot = Slot{x, y, zc, voxels, generation_};
+            accumulators_[static_cast<std::size_t>(voxels)] = Accumulator{};
+            voxel = voxels++;
+            break;
+          }
+          if (slot.x == x && slot.y == y && slot.z == zc) {
+            voxel = slot.voxel;
+            break;
+          }
+          s = (s + 1) & mask_;
+        }
+        recent = Slot{x, y, zc, voxel, generation_};
+        }
+        last_x = x;
+        last_y = y;
+        last_z = zc;
+        last_voxel = voxel;
+      }
+      BlockAccumulator& b = block_row[u / BlockImage::kBlock];
+      if (b.count == 0) {
+        b.min = p;
+        b.max = p;
+      } else {
+        b.min = b.min.cwiseMin(p);
+        b.max = b.max.cwiseMax(p);
+      }
+      b.sum += p;
+      ++b.count;
+      Accumulator& a = accumulators_[static_cast<std::size_t>(voxel)];
+      a.x += p.x();
+      a.y += p.y();
+      a.z += p.z();
+      a.u += static_cast<float>(u);
+      a.v += static_cast<float>(v);
+      ++a.count;
+      ++dense_points;
+    }
+  }
+  return true;
+}
+
+void CloudPreprocessor::split_block(const cv::Mat& depth, int bu, int bv, float split_z,
+                                    std::size_t block) {
+  constexpr int kBlock = BlockImage::kBlock;
+  const float metres_per_unit = camera_.metres(1);
+  const auto min_m = static_cast<float>(config_.min_depth_m);
+  const auto max_m = static_cast<float>(config_.max_depth_m);
+  BlockImage::Part near;
+  BlockImage::Part far;
+  const auto add = [](BlockImage::Part& part, const Eigen::Vector3f& p) {
+    if (part.weight == 0.0F) {
+      part.min = p;
+      part.max = p;
+    } else {
+      part.min = part.min.cwiseMin(p);
+      part.max = part.max.cwiseMax(p);
+    }
+    part.mean += p;
+    part.weight += 1.0F;
+  };
+  for (int v = bv * kBlock; v < std::min((bv + 1) * kBlock, depth.rows); ++v) {
+    const std::uint16_t* row = depth.ptr<std::uint16_t>(v);
+    for (int u = bu * kBlock; u < std::min((bu + 1) * kBlock, depth.cols); ++u) {
+      const std::uint16_t raw = row[u];
+      if (raw == 0) continue;
+      const float z = static_cast<float>(raw) * metres_per_unit;
+      if (z < min_m || z > max_m) continue;
+      add(z <= split_z ? near : far, camera_.back_project(u, v, z));
+    }
+  }
+  for (BlockImage::Part* part : {&near, &far}) {
+    if (part->weight > 0.0F) part->mean /= part->weight;
+  }
+  const auto first = static_cast<std::size_t>(blocks_.part_count);
+  blocks_.parts[first] = near;
+  blocks_.parts[first + 1] = far;
+  blocks_.first_part[block] = blocks_.part_count;
+  blocks_.part_count += 2;
+}
+
+GeometryStatus CloudPreprocessor::process(const cv::Mat& depth, SampledCloud& cloud) {
+  cloud.size = 0;
+  cloud.dense_points = 0;
+  cloud.dropped_normals = 0;
+  if (!configured()) return GeometryStatus::kNotConfigured;
+  if (depth.empty() || depth.type() != CV_16UC1 || depth.cols != camera_.width() ||
+      depth.rows != camera_.height()) {
+    return GeometryStatus::kInvalidImage;
+  }
+  if (static_cast<int>(cloud.points.size()) < max_points_ ||
+      static_cast<int>(cloud.normals.size()) < max_points_ ||
+      static_cast<int>(cloud.pixels.size()) < max_points_ ||
+      static_cast<int>(cloud.curvature.size()) < max_points_ ||
+      static_cast<int>(cloud.dense_counts.size()) < max_points_) {
+    return GeometryStatus::kCapacityExceeded;
+  }
+  const auto min_m = static_cast<float>(config_.min_depth_m);
+  const auto max_m = static_cast<float>(config_.max_depth_m);
+  const float phi =
+      organised_resolution(depth, camera_, config_.resolution_pixel_stride, min_m, max_m);
+  cloud.resolution_m = phi;
+  if (!(phi > 0.0F)) return GeometryStatus::kTooFewPoints;
+  float leaf = std::clamp(static_cast<float>(config_.voxel_leaf_factor) * phi,
+                          static_cast<float>(config_.min_voxel_leaf_m),
+                          static_cast<float>(config_.max_voxel_leaf_m));
+  int voxels = 0;
+  int dense = 0;
+  bool fitted = false;
+  for (int attempt = 0; attempt < kVoxelAttempts && !fitted; ++attempt) {
+    fitted = voxelise(depth, leaf, voxels, dense);
+    if (!fitted) {
+      if (leaf >= static_cast<float>(config_.max_voxel_leaf_m)) break;
+      leaf = std::min(leaf * kLeafGrowth, static_cast<float>(config_.max_voxel_leaf_m));
+    }
+  }
+  if (!fitted) return GeometryStatus::kCapacityExceeded;
+  cloud.voxel_leaf_m = leaf;
+  cloud.dense_points = dense;
+  const float radius = static_cast<float>(config_.normal_radius_factor) * leaf;
+  cloud.normal_radius_m = radius;
+
+  // Block means and bounds. A block whose depths span more than a 80° slope across it (plus the
+  // sensor's quantisation) straddles a depth edge: its mean floats between two surfaces.
+  const float block_span_per_m =
+      static_cast<float>(BlockImage::kBlock) / static_cast<float>(camera_.calibration().fx);
+  blocks_.part_count = 0;
+  for (int bv = 0; bv < blocks_.height; ++bv) {
+    for (int bu = 0; bu < blocks_.width; ++bu) {
+      const BlockAccumulator& sum =
+          block_sums_[static_cast<std::size_t>(bv) * static_cast<std::size_t>(blocks_.width) +
+                      static_cast<std::size_t>(bu)];
+      const std::size_t b = blocks_.index(bu, bv);
+      blocks_.weight[b] = 0.0F;
+      blocks_.edge_weight[b] = 0.0F;
+      if (sum.count == 0) continue;
+      const auto count = static_cast<float>(sum.count);
+      const Eigen::Vector3f mean = sum.sum / count;
+      blocks_.x[b] = mean.x();
+      blocks_.y[b] = mean.y();
+      blocks_.z[b] = mean.z();
+      blocks_.x_min[b] = sum.min.x();
+      blocks_.x_max[b] = sum.max.x();
+      blocks_.y_min[b] = sum.min.y();
+      blocks_.y_max[b] = sum.max.y();
+      blocks_.z_min[b] = sum.min.z();
+      blocks_.z_max[b] = sum.max.z();
+      const float max_span = 6.0F * block_span_per_m * mean.z() + 3e-3F * mean.z() * mean.z();
+      blocks_.first_part[b] = -1;
+      if (sum.max.z() - sum.min.z() > max_span) {
+        blocks_.edge_weight[b] = count;
+        split_block(depth, bu, bv, 0.5F * (sum.min.z() + sum.max.z()), b);
+      } else {
+        blocks_.weight[b] = count;
+      }
+    }
+  }
+
+  int kept = 0;
+  for (int i = 0; i < voxels; ++i) {
+    const Accumulator& a = accumulators_[static_cast<std::size_t>(i)];
+    const float inverse_f = 1.0F / static_cast<float>(a.count);
+    const Eigen::Vector3f center(a.x * inverse_f, a.y * inverse_f, a.z * inverse_f);
+    const Eigen::Vector2f pixel(a.u * inverse_f, a.v * inverse_f);
+    Eigen::Vector3f normal;
+    float curvature = 0.0F;
+    const int used = organised_normal(blocks_, static_cast<float>(camera_.calibration().fx), center, pixel, radius,
+                                      config_.normal_samples_per_axis, normal, &curvature);
+    if (used < config_.normal_min_neighbours) {
+      ++cloud.dropped_normals;
+      continue;
+    }
+    const auto k = static_cast<std::size_t>(kept++);
+    cloud.points[k] = center;
+    cloud.normals[k] = normal;
+    cloud.pixels[k] = pixel;
+    cloud.curvature[k] = curvature;
+    cloud.dense_counts[k] = a.count;
+  }
+  cloud.size = kept;
+  return kept >= 3 ? GeometryStatus::kOk : GeometryStatus::kTooFewPoints;
+}
+
+}  // namespace rankslam::geometry

@@ -1,0 +1,371 @@
+#include "rankslam/geometry/frontend.hpp"
+
+#include <algorithm>
+#include <cmath>
+#include <limits>
+
+#include <time.h>
+
+#include "rankslam/robust/msse.hpp"
+
+namespace rankslam::geometry {
+
+namespace {
+
+// Thread CPU time in milliseconds.
+double cpu_ms() {
+  timespec now{};
+  clock_gettime(CLOCK_THREAD_CPUTIME_ID, &now);
+  return static_cast<double>(now.tv_sec) * 1e3 + static_cast<double>(now.tv_nsec) * 1e-6;
+}
+
+}  // namespace
+
+void GeometricFeatures::reserve(int capacity, int cloud_capacity, int block_capacity) {
+  const auto n = static_cast<std::size_t>(std::max(0, capacity));
+  points_cam.assign(n, Eigen::Vector3f::Zero());
+  normals.assign(n, Eigen::Vector3f::Zero());
+  descriptors.assign(n * static_cast<std::size_t>(kShotSize), 0.0F);
+  sigma_m.assign(n, 0.0F);
+  count = 0;
+  const auto m = static_cast<std::size_t>(std::max(0, cloud_capacity));
+  cloud_points.assign(m, Eigen::Vector3f::Zero());
+  cloud_normals.assign(m, Eigen::Vector3f::Zero());
+  cloud_pixels.assign(m, Eigen::Vector2f::Zero());
+  cloud_curvature.assign(m, 0.0F);
+  cloud_count = 0;
+  block_points.assign(static_cast<std::size_t>(std::max(0, block_capacity)), Eigen::Vector3f::Zero());
+  block_count = 0;
+}
+
+void GeometricCorrespondences::reserve(int capacity) {
+  const int n = std::max(0, capacity);
+  current.setZero(3, n);
+  previous.setZero(3, n);
+  sigma_m.assign(static_cast<std::size_t>(n), 0.0);
+  matches.assign(static_cast<std::size_t>(n), DescriptorMatch{});
+  count = 0;
+}
+
+std::string GeometricFrontend::configure(const slam::DepthCameraModel& camera,
+                                         const GeometryConfig& config,
+                                         const FrontendCapacities& capacities) {
+  configured_ = false;
+  if (const std::string_view bad = config.validate(); !bad.empty()) {
+    return "geometry config: " + std::string(bad) + " is out of range";
+  }
+  if (capacities.max_keypoints < config.max_keypoints) {
+    return "geometry: capacities.max_keypoints (" + std::to_string(capacities.max_keypoints) +
+           ") is below config max_keypoints (" + std::to_string(config.max_keypoints) + ")";
+  }
+  if (capacities.max_sampled_points < 3) {
+    return "geometry: capacities.max_sampled_points must be at least 3";
+  }
+  config_ = config;
+  capacities_ = capacities;
+  camera_ = camera;
+  if (std::string error = preprocessor_.configure(camera_, config_, capacities.max_sampled_points);
+      !error.empty()) {
+    return error;
+  }
+  cloud_ = preprocessor_.make_cloud();
+  if (std::string error = detector_.configure(config_, capacities.max_sampled_points);
+      !error.empty()) {
+    return error;
+  }
+  keypoints_.assign(static_cast<std::size_t>(capacities.max_keypoints), 0);
+  keypoint_count_ = 0;
+  support_grid_.reserve(capacities.max_sampled_points);
+  shot_.reserve(capacities.max_sampled_points);
+  if (std::string error = matcher_.configure(capacities.max_keypoints, kShotSize); !error.empty()) {
+    return error;
+  }
+  scratch_.reserve(capacities.max_keypoints);
+  rigid_ = robust::RigidModel(capacities.max_keypoints);
+  workspace_.reserve(capacities.max_keypoints);
+  if (std::string error = icp_.configure(
+          camera_.calibration(),
+          std::max(capacities.max_sampled_points, static_cast<int>(preprocessor_.blocks().weight.size())));
+      !error.empty()) {
+    return error;
+  }
+  configured_ = true;
+  return {};
+}
+
+GeometricFeatures GeometricFrontend::make_features() const {
+  GeometricFeatures features;
+  features.reserve(capacities_.max_keypoints, capacities_.max_sampled_points,
+                   static_cast<int>(preprocessor_.blocks().weight.size()));
+  return features;
+}
+
+GeometricCorrespondences GeometricFrontend::make_correspondences() const {
+  GeometricCorrespondences correspondences;
+  correspondences.reserve(capacities_.max_keypoints);
+  return correspondences;
+}
+
+GeometryStatus GeometricFrontend::extract(const cv::Mat& depth, GeometricFeatures& out) {
+  return extract(depth, config_.keypoint_method, out);
+}
+
+GeometryStatus GeometricFrontend::extract(const cv::Mat& depth, KeypointMethod method,
+                                          GeometricFeatures& out) {
+  out.count = 0;
+  out.cloud_count = 0;
+  out.block_count = 0;
+  out.dense_points = 0;
+  out.sampled_points = 0;
+  out.keypoint_candidates = 0;
+  keypoint_count_ = 0;
+  if (!configured_) return GeometryStatus::kNotConfigured;
+  if (out.capacity() < config_.max_keypoints ||
+      out.descriptors.size() < static_cast<std::size_t>(out.capacity()) * kShotSize ||
+      out.points_cam.size() < static_cast<std::size_t>(out.capacity()) ||
+      out.normals.size() < static_cast<std::size_t>(out.capacity()) ||
+      out.cloud_points.size() < static_cast<std::size_t>(capacities_.max_sampled_points) ||
+      out.cloud_normals.size() < out.cloud_points.size() ||
+      out.cloud_pixels.size() < out.cloud_points.size() ||
+      out.cloud_curvature.size() < out.cloud_points.size() ||
+      out.block_points.size() < preprocessor_.blocks().weight.size()) {
+    return GeometryStatus::kCapacityExceeded;
+  }
+  times_.cloud_ms = times_.keypoints_ms = times_.descriptors_ms = 0.0;
+  double t0 = cpu_ms();
+  GeometryStatus status = preprocessor_.process(depth, cloud_);
+  out.dense_points = cloud_.dense_points;
+  out.sampled_points = cloud_.size;
+  out.resolution_m = cloud_.resolution_m;
+  out.voxel_leaf_m = cloud_.voxel_leaf_m;
+  if (status != GeometryStatus::kOk) return status;
+  std::copy_n(cloud_.points.begin(), cloud_.size, out.cloud_points.begin());
+  std::copy_n(cloud_.normals.begin(), cloud_.size, out.cloud_normals.begin());
+  std::copy_n(cloud_.pixels.begin(), cloud_.size, out.cloud_pixels.begin());
+  std::copy_n(cloud_.curvature.begin(), cloud_.size, out.cloud_curvature.begin());
+  out.cloud_count = cloud_.size;
+  {
+    // A block at least half full and off depth edges: 8+ pixels averaged on one surface.
+    constexpr float kMinBlockPoints = 0.5F * BlockImage::kBlock * BlockImage::kBlock;
+    const BlockImage& blocks = preprocessor_.blocks();
+    int n = 0;
+    for (int v = 0; v < blocks.height; ++v) {
+      for (int u = 0; u < blocks.width; ++u) {
+        const std::size_t b = blocks.index(u, v);
+        if (blocks.weight[b] < kMinBlockPoints) continue;  // empty, sparse or across a depth edge
+        out.block_points[static_cast<std::size_t>(n++)] = blocks.mean(b);
+      }
+    }
+    out.block_count = n;
+  }
+
+  double t1 = cpu_ms();
+  times_.cloud_ms = t1 - t0;
+  keypoint_count_ = detector_.detect(method, cloud_, keypoints_, status);
+  out.keypoint_candidates = detector_.stats().candidates;
+  t0 = cpu_ms();
+  times_.keypoints_ms = t0 - t1;
+  if (status != GeometryStatus::kOk) return status;
+
+  // SHOT over the sampled cloud: cells of the support radius make each query 2–3 cells a side.
+  const auto radius = static_cast<float>(config_.shot_radius_m);
+  const auto points = cloud_.point_span();
+  const auto normals = cloud_.normal_span();
+  if (!support_grid_.build(points, radius)) return GeometryStatus::kCapacityExceeded;
+  const auto a = static_cast<float>(config_.depth_noise_per_m);
+  const auto lateral = static_cast<float>(config_.lateral_sigma_m);
+  int count = 0;
+  for (int k = 0; k < keypoint_count_; ++k) {
+    const int index = keypoints_[static_cast<std::size_t>(k)];
+    const Eigen::Vector3f& p = points[static_cast<std::size_t>(index)];
+    float* descriptor = out.descriptors.data() + static_cast<std::ptrdiff_t>(count) * kShotSize;
+    if (shot_.compute(p, points, normals, support_grid_, radius, config_.shot_min_neighbours,
+                      descriptor) != ShotResult::kOk) {
+      continue;
+    }
+    const auto c = static_cast<std::size_t>(count);
+    out.points_cam[c] = p;
+    out.normals[c] = normals[static_cast<std::size_t>(index)];
+    // σ² = σ_z² + 2σ_lat² with σ_z = a·z² (Khoshelham & Elberink 2012): one point's share of
+    // robust::correspondence_sigmas_m.
+    const float sigma_z = a * p.z() * p.z();
+    out.sigma_m[c] = std::sqrt(sigma_z * sigma_z + 2.0F * lateral * lateral);
+    ++count;
+  }
+  out.count = count;
+  times_.descriptors_ms = cpu_ms() - t0;
+  return count >= 3 ? GeometryStatus::kOk : GeometryStatus::kTooFewKeypoints;
+}
+
+GeometryStatus GeometricFrontend::correspondences(const GeometricFeatures& previous,
+                                                  const GeometricFeatures& current,
+                                                  GeometricCorrespondences& out) {
+  out.count = 0;
+  if (!configured_) return GeometryStatus::kNotConfigured;
+  if (previous.count > capacities_.max_keypoints || current.count > capacities_.max_keypoints ||
+      static_cast<int>(out.matches.size()) < std::min(previous.count, current.count) ||
+      out.current.cols() < static_cast<Eigen::Index>(out.matches.size()) ||
+      out.previous.cols() < static_cast<Eigen::Index>(out.matches.size()) ||
+      out.sigma_m.size() < out.matches.size()) {
+    return GeometryStatus::kCapacityExceeded;
+  }
+  if (previous.count < 3 || current.count < 3) return GeometryStatus::kTooFewKeypoints;
+  const int matches = matcher_.match(previous.descriptors.data(), previous.count,
+                                     current.descriptors.data(), current.count, out.matches);
+  if (matches < 0) return GeometryStatus::kCapacityExceeded;
+  for (int i = 0; i < matches; ++i) {
+    const DescriptorMatch& m = out.matches[static_cast<std::size_t>(i)];
+    out.previous.col(i) = previous.points_cam[static_cast<std::size_t>(m.a)].cast<double>();
+    out.current.col(i) = current.points_cam[static_cast<std::size_t>(m.b)].cast<double>();
+    const double sp = previous.sigma_m[static_cast<std::size_t>(m.a)];
+    const double sc = current.sigma_m[static_cast<std::size_t>(m.b)];
+    out.sigma_m[static_cast<std::size_t>(i)] = std::sqrt(sp * sp + sc * sc);
+  }
+  out.count = matches;
+  return matches >= 3 ? GeometryStatus::kOk : GeometryStatus::kTooFewMatches;
+}
+
+FrameRegistration GeometricFrontend::register_frames(const GeometricFeatures& previous,
+                                                     const GeometricFeatures& current,
+                                                     const Eigen::Isometry3d& T_previous_current_guess) {
+  FrameRegistration registration;
+  times_.matching_ms = times_.msse_ms = times_.icp_ms = 0.0;
+  double t0 = cpu_ms();
+  registration.status = correspondences(previous, current, scratch_);
+  double t1 = cpu_ms();
+  times_.matching_ms = t1 - t0;
+  registration.matches = scratch_.count;
+  if (registration.status == GeometryStatus::kNotConfigured ||
+      registration.status == GeometryStatus::kCapacityExceeded) {
+    return registration;
+  }
+  if (registration.status == GeometryStatus::kOk) {
+    const int n = scratch_.count;
+    if (rigid_.set_correspondences(scratch_.current.leftCols(n), scratch_.previous.leftCols(n)) !=
+        robust::RobustStatus::kOk) {
+      registration.status = GeometryStatus::kRegistrationFailed;
+    } else {
+      robust::MsseConfig msse;
+      msse.hypotheses = config_.msse_hypotheses;
+      msse.min_inlier_fraction = config_.msse_min_inlier_fraction;
+      msse.seed = static_cast<std::uint64_t>(config_.seed) * 0x9e3779b97f4a7c15ULL + 0x51ed270bULL;
+      const std::span<const double> sigmas =
+          config_.per_point_noise != 0
+              ? std::span<const double>(scratch_.sigma_m.data(), static_cast<std::size_t>(n))
+              : std::span<const double>{};
+      robust::RigidMotionGate gate;
+      gate.T_t_s_predicted = T_previous_current_guess;
+      gate.max_translation_m = config_.motion_gate_translation_m > 0.0
+                                   ? config_.motion_gate_translation_m
+                                   : std::numeric_limits<double>::infinity();
+      gate.max_rotation_rad = config_.motion_gate_rotation_deg > 0.0
+                                  ? config_.motion_gate_rotation_deg * 3.14159265358979323846 / 180.0
+                                  : std::numeric_limits<double>::infinity();
+      const auto result = robust::estimate_msse(rigid_, msse, workspace_, sigmas, gate);
+      if (!result.ok()) {
+        registration.status = result.status == robust::RobustStatus::kTooFewPoints
+                                  ? GeometryStatus::kTooFewMatches
+                                  : GeometryStatus::kRegistrationFailed;
+      } else {
+        registration.inliers = result.inlier_count;
+        registration.scale = result.scale;
+        if (result.inlier_count < config_.min_inliers) {
+          registration.status = GeometryStatus::kRegistrationFailed;
+        } else {
+          registration.T_previous_current = result.model;
+          registration.msse_ok = true;
+          registration.status = GeometryStatus::kOk;
+        }
+      }
+    }
+  }
+  registration.ok = registration.msse_ok;
+  t0 = cpu_ms();
+  times_.msse_ms = t0 - t1;
+  if (config_.icp_iterations == 0 || previous.cloud_count < 3 || current.cloud_count < 3) {
+    return registration;
+  }
+
+  // ICP refinement from MSSE's estimate, and from the guess when that is missing or poor.
+  const IcpCloud previous_cloud{
+      {previous.cloud_points.data(), static_cast<std::size_t>(previous.cloud_count)},
+      {previous.cloud_normals.data(), static_cast<std::size_t>(previous.cloud_count)},
+      {previous.cloud_pixels.data(), static_cast<std::size_t>(previous.cloud_count)},
+      {previous.cloud_curvature.data(), static_cast<std::size_t>(previous.cloud_count)}};
+  const IcpCloud current_cloud{
+      {current.cloud_points.data(), static_cast<std::size_t>(current.cloud_count)},
+      {current.cloud_normals.data(), static_cast<std::size_t>(current.cloud_count)},
+      {current.cloud_pixels.data(), static_cast<std::size_t>(current.cloud_count)},
+      {current.cloud_curvature.data(), static_cast<std::size_t>(current.cloud_count)}};
+  IcpConfig coarse;
+  coarse.max_iterations = config_.icp_iterations;
+  coarse.max_points = config_.icp_max_points;
+  coarse.max_distance_m = static_cast<float>(config_.icp_max_distance_factor) *
+                          std::max(previous.voxel_leaf_m, current.voxel_leaf_m);
+  coarse.min_inlier_fraction = config_.icp_min_inlier_fraction;
+  coarse.max_curvature = static_cast<float>(config_.icp_max_curvature);
+  if (config_.per_point_noise != 0) {
+    coarse.depth_noise_per_m = static_cast<float>(config_.depth_noise_per_m);
+    coarse.noise_floor_m = static_cast<float>(config_.lateral_sigma_m);
+  }
+  IcpResult best;
+  RefinementStart start = RefinementStart::kNone;
+  if (registration.msse_ok) {
+    best = icp_.refine(previous_cloud, current_cloud, registration.T_previous_current, coarse);
+    if (best.ok) start = RefinementStart::kMsse;
+  }
+  constexpr double kSameStartM = 0.02;
+  constexpr double kSameStartRad = 1.0 * 3.14159265358979323846 / 180.0;
+  const bool distinct_guess =
+      !registration.msse_ok ||
+      robust::translation_difference_m(registration.T_previous_current, T_previous_current_guess) >
+          kSameStartM ||
+      robust::rotation_difference_rad(registration.T_previous_current, T_previous_current_guess) >
+          kSameStartRad;
+  if ((config_.icp_guess_fallback != 0 || !best.ok) && distinct_guess) {
+    const IcpResult from_guess =
+        icp_.refine(previous_cloud, current_cloud, T_previous_current_guess, coarse);
+    if (from_guess.ok) {
+      bool take = !best.ok;
+      if (!take) {
+        // Compare both at one residual scale: the better fit's.
+        const auto limit = static_cast<float>(2.5 * std::min(best.rms_m, from_guess.rms_m));
+        const int a = icp_.count_within(previous_cloud, current_cloud, best.T_previous_current,
+                                        coarse, limit);
+        const int b = icp_.count_within(previous_cloud, current_cloud,
+                                        from_guess.T_previous_current, coarse, limit);
+        take = b > a;
+      }
+      if (take) {
+        best = from_guess;
+        start = RefinementStart::kGuess;
+      }
+    }
+  }
+  if (start == RefinementStart::kNone || best.inliers < config_.min_inliers) {
+    times_.icp_ms = cpu_ms() - t0;
+    return registration;
+  }
+  if (config_.icp_fine_iterations > 0) {
+    IcpConfig fine = coarse;
+    fine.max_iterations = config_.icp_fine_iterations;
+    fine.max_curvature = static_cast<float>(config_.icp_fine_max_curvature);
+    fine.max_points = config_.icp_fine_max_points;
+    // Dense source: the current block means against the previous flat centroids' planes.
+    const IcpCloud current_blocks{
+        {current.block_points.data(), static_cast<std::size_t>(current.block_count)}, {}, {}, {}};
+    const IcpResult refined =
+        icp_.refine(previous_cloud, current_blocks, best.T_previous_current, fine);
+    if (refined.ok && refined.inliers >= config_.min_inliers) best = refined;
+  }
+  times_.icp_ms = cpu_ms() - t0;
+  registration.refined_from = start;
+  registration.icp_inliers = best.inliers;
+  registration.icp_rms_m = best.rms_m;
+  registration.T_previous_current = best.T_previous_current;
+  registration.ok = true;
+  registration.status = GeometryStatus::kOk;
+  return registration;
+}
+
+}  // namespace rankslam::geometry

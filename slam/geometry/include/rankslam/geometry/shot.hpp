@@ -1,0 +1,68 @@
+#pragma once
+
+// SHOT — Signature of Histograms of OrienTations (Tombari, Salti & Di Stefano, ECCV 2010), the
+// shape-only variant, computed as PCL's pcl::SHOTEstimation (1.13) does so that descriptors are
+// interchangeable with it (ALGORITHMS.md §3.5):
+//  - local reference frame: eigenvectors of the covariance of the support points about the
+//    keypoint, each weighted by (R − distance) (Tombari et al.'s SHOT LRF); x and z signs point
+//    toward the majority of the support, ties broken on the 5 median-distance neighbours;
+//    y = z × x;
+//  - 32 spatial volumes: 8 azimuth × 2 elevation × 2 radial (at R/2) sectors of the LRF;
+//  - per volume a histogram of cos(LRF z, neighbour normal) with 10 bins plus PCL's 11th slot
+//    (cos = 1 rounds to bin 10), so 32 × 11 = 352 values;
+//  - quadrilinear interpolation: each neighbour votes into its cosine bin and the adjacent one,
+//    and into the adjacent radial, elevation and azimuth volumes by distance to their centres;
+//  - L2 normalisation.
+// Arc functions are polynomial (|error| ≤ 10⁻⁵ rad) instead of libm's acos/atan2.
+
+#include <cstdint>
+#include <span>
+#include <vector>
+
+#include <Eigen/Core>
+
+#include "rankslam/geometry/point_grid.hpp"
+
+namespace rankslam::geometry {
+
+inline constexpr int kShotCosineBins = 10;
+inline constexpr int kShotVolumes = 32;
+inline constexpr int kShotSize = kShotVolumes * (kShotCosineBins + 1);  // 352
+static_assert(kShotSize == 352, "SHOT descriptors have 352 values");
+
+/// Why a descriptor could not be computed.
+enum class ShotResult : std::uint8_t {
+  kOk,
+  kTooFewNeighbours,  ///< Fewer support points than required (descriptor or LRF).
+  kDegenerate,        ///< Non-finite LRF or an all-zero histogram.
+};
+
+class ShotEstimator {
+ public:
+  ShotEstimator() = default;
+  explicit ShotEstimator(int max_support) { reserve(max_support); }
+
+  /// Set-up (allocates): room for up to max_support support points per descriptor.
+  void reserve(int max_support);
+
+  /// Per keypoint, no allocation: the SHOT of `center` over the support points (with unit
+  /// normals) within radius_m, found through `grid` (built over `points`, any cell size; a cell
+  /// near radius_m is fastest). Writes kShotSize values to `descriptor` and, when non-null, the
+  /// LRF as rows x, y, z to `lrf`.
+  ShotResult compute(const Eigen::Vector3f& center, std::span<const Eigen::Vector3f> points,
+                     std::span<const Eigen::Vector3f> normals, const PointGrid& grid,
+                     float radius_m, int min_neighbours, float* descriptor,
+                     Eigen::Matrix3f* lrf = nullptr);
+
+ private:
+  bool local_reference_frame(float radius_m, Eigen::Matrix3f& rf);
+
+  int capacity_ = 0;
+  int count_ = 0;
+  std::vector<int> indices_;
+  std::vector<float> squared_distances_;
+  std::vector<Eigen::Vector3f> deltas_;  // neighbour − keypoint
+  std::vector<std::pair<float, int>> sorted_;  // tie-break scratch
+};
+
+}  // namespace rankslam::geometry

@@ -1,0 +1,236 @@
+#include "rankslam/geometry/matching.hpp"
+
+#include <algorithm>
+#include <cmath>
+#include <limits>
+
+#include <Eigen/Core>
+
+#if defined(__x86_64__) && defined(__GNUC__)
+#include <immintrin.h>
+#define RANKSLAM_GEOMETRY_HAVE_AVX2_KERNEL 1
+#endif
+
+namespace rankslam::geometry {
+
+namespace {
+
+struct Best {
+  float* best_a;
+  int* arg_a;
+  float* best_b;
+  int* arg_b;
+};
+
+// Strictly greater keeps the lower index on ties, since rows and columns are visited ascending.
+inline void update(Best& best, int i, int j, float s) {
+  if (s > best.best_a[i]) {
+    best.best_a[i] = s;
+    best.arg_a[i] = j;
+  }
+  if (s > best.best_b[j]) {
+    best.best_b[j] = s;
+    best.arg_b[j] = i;
+  }
+}
+
+// Portable kernel: 2 × 2 blocks of dot products, 8 independent lanes each, as Eigen fixed-size
+// packets (SSE2 / NEON).
+void scan_portable(const float* a, int na, const float* b, int nb, int dim, Best& best) {
+  using Lanes = Eigen::Array<float, 8, 1>;
+  const int vector_end = dim - dim % 8;
+  const auto dot_tail = [&](const float* x, const float* y) {
+    float s = 0.0F;
+    for (int k = vector_end; k < dim; ++k) s += x[k] * y[k];
+    return s;
+  };
+  int i = 0;
+  for (; i + 1 < na; i += 2) {
+    const float* a0 = a + static_cast<std::ptrdiff_t>(i) * dim;
+    const float* a1 = a0 + dim;
+    int j = 0;
+    for (; j + 1 < nb; j += 2) {
+      const float* b0 = b + static_cast<std::ptrdiff_t>(j) * dim;
+      const float* b1 = b0 + dim;
+      Lanes s00 = Lanes::Zero(), s01 = Lanes::Zero(), s10 = Lanes::Zero(), s11 = Lanes::Zero();
+      for (int k = 0; k < vector_end; k += 8) {
+        const Lanes x0 = Eigen::Map<const Lanes>(a0 + k);
+        const Lanes x1 = Eigen::Map<const Lanes>(a1 + k);
+        const Lanes y0 = Eigen::Map<const Lanes>(b0 + k);
+        const Lanes y1 = Eigen::Map<const Lanes>(b1 + k);
+        s00 += x0 * y0;
+        s01 += x0 * y1;
+        s10 += x1 * y0;
+        s11 += x1 * y1;
+      }
+      update(best, i, j, s00.sum() + dot_tail(a0, b0));
+      update(best, i, j + 1, s01.sum() + dot_tail(a0, b1));
+      update(best, i + 1, j, s10.sum() + dot_tail(a1, b0));
+      update(best, i + 1, j + 1, s11.sum() + dot_tail(a1, b1));
+    }
+    for (; j < nb; ++j) {
+      const float* b0 = b + static_cast<std::ptrdiff_t>(j) * dim;
+      float s0 = 0.0F, s1 = 0.0F;
+      for (int k = 0; k < dim; ++k) {
+        s0 += a0[k] * b0[k];
+        s1 += a1[k] * b0[k];
+      }
+      update(best, i, j, s0);
+      update(best, i + 1, j, s1);
+    }
+  }
+  for (; i < na; ++i) {
+    const float* a0 = a + static_cast<std::ptrdiff_t>(i) * dim;
+    for (int j = 0; j < nb; ++j) {
+      const float* b0 = b + static_cast<std::ptrdiff_t>(j) * dim;
+      float s = 0.0F;
+      for (int k = 0; k < dim; ++k) s += a0[k] * b0[k];
+      update(best, i, j, s);
+    }
+  }
+}
+
+#ifdef RANKSLAM_GEOMETRY_HAVE_AVX2_KERNEL
+__attribute__((target("avx2,fma"))) inline float horizontal_sum(__m256 v) {
+  const __m128 lo = _mm256_castps256_ps128(v);
+  const __m128 hi = _mm256_extractf128_ps(v, 1);
+  __m128 s = _mm_add_ps(lo, hi);
+  s = _mm_add_ps(s, _mm_movehl_ps(s, s));
+  s = _mm_add_ss(s, _mm_shuffle_ps(s, s, 0x55));
+  return _mm_cvtss_f32(s);
+}
+
+// 4 × 2 blocks: 8 accumulators, 4 rows of A and 2 of B in registers (14 of 16 ymm).
+__attribute__((target("avx2,fma"))) void scan_avx2(const float* a, int na, const float* b,
+                                                   int nb, int dim, Best& best) {
+  const int vector_end = dim - dim % 8;
+  const auto dot = [dim](const float* x, const float* y, int from) {
+    float s = 0.0F;
+    for (int k = from; k < dim; ++k) s += x[k] * y[k];
+    return s;
+  };
+  int i = 0;
+  for (; i + 3 < na; i += 4) {
+    const float* a0 = a + static_cast<std::ptrdiff_t>(i) * dim;
+    const float* a1 = a0 + dim;
+    const float* a2 = a1 + dim;
+    const float* a3 = a2 + dim;
+    int j = 0;
+    for (; j + 1 < nb; j += 2) {
+      const float* b0 = b + static_cast<std::ptrdiff_t>(j) * dim;
+      const float* b1 = b0 + dim;
+      __m256 s00 = _mm256_setzero_ps(), s01 = _mm256_setzero_ps();
+      __m256 s10 = _mm256_setzero_ps(), s11 = _mm256_setzero_ps();
+      __m256 s20 = _mm256_setzero_ps(), s21 = _mm256_setzero_ps();
+      __m256 s30 = _mm256_setzero_ps(), s31 = _mm256_setzero_ps();
+      for (int k = 0; k < vector_end; k += 8) {
+        const __m256 y0 = _mm256_loadu_ps(b0 + k);
+        const __m256 y1 = _mm256_loadu_ps(b1 + k);
+        const __m256 x0 = _mm256_loadu_ps(a0 + k);
+        s00 = _mm256_fmadd_ps(x0, y0, s00);
+        s01 = _mm256_fmadd_ps(x0, y1, s01);
+        const __m256 x1 = _mm256_loadu_ps(a1 + k);
+        s10 = _mm256_fmadd_ps(x1, y0, s10);
+        s11 = _mm256_fmadd_ps(x1, y1, s11);
+        const __m256 x2 = _mm256_loadu_ps(a2 + k);
+        s20 = _mm256_fmadd_ps(x2, y0, s20);
+        s21 = _mm256_fmadd_ps(x2, y1, s21);
+        const __m256 x3 = _mm256_loadu_ps(a3 + k);
+        s30 = _mm256_fmadd_ps(x3, y0, s30);
+        s31 = _mm256_fmadd_ps(x3, y1, s31);
+      }
+      update(best, i, j, horizontal_sum(s00) + dot(a0, b0, vector_end));
+      update(best, i, j + 1, horizontal_sum(s01) + dot(a0, b1, vector_end));
+      update(best, i + 1, j, horizontal_sum(s10) + dot(a1, b0, vector_end));
+      update(best, i + 1, j + 1, horizontal_sum(s11) + dot(a1, b1, vector_end));
+      update(best, i + 2, j, horizontal_sum(s20) + dot(a2, b0, vector_end));
+      update(best, i + 2, j + 1, horizontal_sum(s21) + dot(a2, b1, vector_end));
+      update(best, i + 3, j, horizontal_sum(s30) + dot(a3, b0, vector_end));
+      update(best, i + 3, j + 1, horizontal_sum(s31) + dot(a3, b1, vector_end));
+    }
+    for (; j < nb; ++j) {
+      const float* b0 = b + static_cast<std::ptrdiff_t>(j) * dim;
+      for (int r = 0; r < 4; ++r) update(best, i + r, j, dot(a0 + r * dim, b0, 0));
+    }
+  }
+  for (; i < na; ++i) {
+    const float* a0 = a + static_cast<std::ptrdiff_t>(i) * dim;
+    for (int j = 0; j < nb; ++j) {
+      const float* b0 = b + static_cast<std::ptrdiff_t>(j) * dim;
+      __m256 s = _mm256_setzero_ps();
+      for (int k = 0; k < vector_end; k += 8) {
+        s = _mm256_fmadd_ps(_mm256_loadu_ps(a0 + k), _mm256_loadu_ps(b0 + k), s);
+      }
+      update(best, i, j, horizontal_sum(s) + dot(a0, b0, vector_end));
+    }
+  }
+}
+
+bool cpu_has_avx2_fma() {
+  static const bool has = __builtin_cpu_supports("avx2") && __builtin_cpu_supports("fma");
+  return has;
+}
+#endif
+
+}  // namespace
+
+bool DescriptorMatcher::cpu_has_avx2() {
+#ifdef RANKSLAM_GEOMETRY_HAVE_AVX2_KERNEL
+  return cpu_has_avx2_fma();
+#else
+  return false;
+#endif
+}
+
+std::string DescriptorMatcher::configure(int max_descriptors, int dimension, Kernel kernel) {
+  capacity_ = 0;
+  if (max_descriptors < 1 || max_descriptors > 1'000'000) {
+    return "geometry: matcher capacity " + std::to_string(max_descriptors) + " is out of range";
+  }
+  if (dimension < 1 || dimension > 100'000) {
+    return "geometry: descriptor dimension " + std::to_string(dimension) + " is out of range";
+  }
+  dimension_ = dimension;
+  const auto n = static_cast<std::size_t>(max_descriptors);
+  best_of_a_.assign(n, 0.0F);
+  arg_of_a_.assign(n, -1);
+  best_of_b_.assign(n, 0.0F);
+  arg_of_b_.assign(n, -1);
+  use_avx2_ = kernel == Kernel::kBest && cpu_has_avx2();
+  capacity_ = max_descriptors;
+  return {};
+}
+
+int DescriptorMatcher::match(const float* a, int count_a, const float* b, int count_b,
+                             std::span<DescriptorMatch> out) {
+  if (!configured() || count_a > capacity_ || count_b > capacity_ || count_a < 0 || count_b < 0) {
+    return -1;
+  }
+  if (count_a == 0 || count_b == 0) return 0;
+  constexpr float kLowest = -std::numeric_limits<float>::infinity();
+  std::fill_n(best_of_a_.begin(), count_a, kLowest);
+  std::fill_n(arg_of_a_.begin(), count_a, -1);
+  std::fill_n(best_of_b_.begin(), count_b, kLowest);
+  std::fill_n(arg_of_b_.begin(), count_b, -1);
+  Best best{best_of_a_.data(), arg_of_a_.data(), best_of_b_.data(), arg_of_b_.data()};
+#ifdef RANKSLAM_GEOMETRY_HAVE_AVX2_KERNEL
+  if (use_avx2_) {
+    scan_avx2(a, count_a, b, count_b, dimension_, best);
+  } else {
+    scan_portable(a, count_a, b, count_b, dimension_, best);
+  }
+#else
+  scan_portable(a, count_a, b, count_b, dimension_, best);
+#endif
+  int count = 0;
+  for (int i = 0; i < count_a && count < static_cast<int>(out.size()); ++i) {
+    const int j = arg_of_a_[static_cast<std::size_t>(i)];
+    if (j < 0 || arg_of_b_[static_cast<std::size_t>(j)] != i) continue;
+    const float similarity = best_of_a_[static_cast<std::size_t>(i)];
+    out[static_cast<std::size_t>(count++)] =
+        DescriptorMatch{i, j, std::sqrt(std::max(0.0F, 2.0F - 2.0F * similarity))};
+  }
+  return count;
+}
+
+}  // namespace rankslam::geometry

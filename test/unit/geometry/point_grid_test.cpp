@@ -1,0 +1,91 @@
+#include <algorithm>
+#include <random>
+#include <vector>
+
+#include <gtest/gtest.h>
+
+#include "rankslam/geometry/point_grid.hpp"
+
+namespace rankslam::geometry {
+namespace {
+
+std::vector<Eigen::Vector3f> random_points(int n, std::uint32_t seed) {
+  std::mt19937 rng(seed);
+  std::uniform_real_distribution<float> u(-1.0F, 1.0F);
+  std::vector<Eigen::Vector3f> points;
+  for (int i = 0; i < n; ++i) {
+    // A surface-like cloud: a wavy sheet plus a few scattered points.
+    const float x = u(rng);
+    const float y = u(rng);
+    const float z = i % 10 == 0 ? u(rng) : 0.2F * std::sin(3.0F * x) + 0.01F * u(rng);
+    points.emplace_back(x, y, 2.0F + z);
+  }
+  return points;
+}
+
+TEST(PointGrid, NearestMatchesBruteForce) {
+  const auto points = random_points(3000, 1);
+  PointGrid grid(3000);
+  ASSERT_TRUE(grid.build(points, 0.05F));
+  std::mt19937 rng(2);
+  std::uniform_int_distribution<int> pick(0, 2999);
+  for (int trial = 0; trial < 200; ++trial) {
+    const int q = pick(rng);
+    std::array<int, 10> idx{};
+    std::array<float, 10> d2{};
+    const int found = grid.nearest(points[static_cast<std::size_t>(q)], 10, q, 40, idx.data(), d2.data());
+    ASSERT_EQ(found, 10);
+    std::vector<std::pair<float, int>> all;
+    for (int i = 0; i < 3000; ++i) {
+      if (i == q) continue;
+      all.emplace_back((points[static_cast<std::size_t>(i)] - points[static_cast<std::size_t>(q)]).squaredNorm(), i);
+    }
+    std::partial_sort(all.begin(), all.begin() + 10, all.end());
+    for (int k = 0; k < 10; ++k) {
+      EXPECT_FLOAT_EQ(d2[static_cast<std::size_t>(k)], all[static_cast<std::size_t>(k)].first) << "trial " << trial;
+    }
+  }
+}
+
+TEST(PointGrid, RadiusQueryMatchesBruteForce) {
+  const auto points = random_points(2000, 3);
+  PointGrid grid(2000);
+  ASSERT_TRUE(grid.build(points, 0.1F));
+  for (int q = 0; q < 2000; q += 37) {
+    std::vector<int> found;
+    grid.for_each_in_radius(points[static_cast<std::size_t>(q)], 0.15F, [&](int i, float d2) {
+      EXPECT_LE(d2, 0.15F * 0.15F);
+      found.push_back(i);
+    });
+    std::vector<int> expected;
+    for (int i = 0; i < 2000; ++i) {
+      if ((points[static_cast<std::size_t>(i)] - points[static_cast<std::size_t>(q)]).squaredNorm() <= 0.15F * 0.15F) {
+        expected.push_back(i);
+      }
+    }
+    std::sort(found.begin(), found.end());
+    EXPECT_EQ(found, expected);
+  }
+}
+
+TEST(PointGrid, RejectsOverCapacityAndBadCells) {
+  const auto points = random_points(100, 4);
+  PointGrid grid(50);
+  EXPECT_FALSE(grid.build(points, 0.1F));
+  PointGrid roomy(100);
+  EXPECT_FALSE(roomy.build(points, 0.0F));
+  EXPECT_FALSE(roomy.build(points, std::numeric_limits<float>::quiet_NaN()));
+  EXPECT_TRUE(roomy.build(points, 0.1F));
+  EXPECT_EQ(static_cast<int>(roomy.sorted_indices().size()), 100);
+}
+
+TEST(PointGrid, FloorToIntIsFloorAndClamps) {
+  EXPECT_EQ(floor_to_int(1.5F), 1);
+  EXPECT_EQ(floor_to_int(-1.5F), -2);
+  EXPECT_EQ(floor_to_int(-2.0F), -2);
+  EXPECT_EQ(floor_to_int(std::numeric_limits<float>::quiet_NaN()), -1073741824);
+  EXPECT_EQ(floor_to_int(1e30F), 1073741824);
+}
+
+}  // namespace
+}  // namespace rankslam::geometry
