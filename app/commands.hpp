@@ -59,7 +59,7 @@ inline constexpr slam::Mode kDefaultMode = slam::Mode::kPhotometric;
 
 /// Whether this build implements `mode`.
 [[nodiscard]] inline bool mode_implemented(slam::Mode mode) {
-  return mode == slam::Mode::kBaseline || mode == slam::Mode::kPhotometric;
+  return mode == slam::Mode::kBaseline || mode == slam::Mode::kPhotometric || mode == slam::Mode::kGeometric;
 }
 
 /// The scene `rankslam replay` simulates when given no recording.

@@ -4,28 +4,21 @@
 
 #include <set>
 #include <sstream>
+#include <string>
+#include <string_view>
 
 namespace rankslam::app {
 
-std::string load_slam_config(const std::filesystem::path& path, slam::SlamConfig& config) {
-  YAML::Node root;
-  try {
-    root = YAML::LoadFile(path.string());
-  } catch (const YAML::Exception& error) {
-    return path.string() + ": " + error.what();
-  }
-  const YAML::Node section = root["slam"];
-  if (!section) return {};
-  if (!section.IsMap()) return path.string() + ": 'slam' must be a map of parameters";
+namespace {
+
+// Reads the numeric parameters a config struct declares through visit_parameters from one YAML
+// section; every key must be one of them or in `named` (handled by the caller).
+template <typename Config>
+std::string load_section(const std::filesystem::path& path, const YAML::Node& section, const char* section_name,
+                         std::set<std::string> known, Config& config) {
   std::string error;
-  std::set<std::string> known{"icp_mode"};
-  if (const YAML::Node icp = section["icp_mode"]) {
-    const auto parsed = icp.IsScalar() ? slam::parse_icp_mode(icp.Scalar()) : std::nullopt;
-    if (!parsed) return path.string() + ": slam.icp_mode must be off, point_to_point or point_to_plane";
-    config.icp_mode = *parsed;
-  }
-  config.visit_parameters([&](const char* name, auto& field, auto min, auto max, const char* /*unit*/,
-                              const char* /*doc*/) {
+  config.visit_parameters([&](auto name_arg, auto& field, auto min, auto max, auto /*unit*/, auto /*doc*/) {
+    const std::string name(name_arg);
     known.insert(name);
     if (!error.empty() || !section[name]) return;
     using Field = std::remove_reference_t<decltype(field)>;
@@ -33,12 +26,13 @@ std::string load_slam_config(const std::filesystem::path& path, slam::SlamConfig
     try {
       value = section[name].template as<Field>();
     } catch (const YAML::Exception&) {
-      error = path.string() + ": slam." + name + " is not a valid number";
+      error = path.string() + ": " + section_name + "." + name + " is not a valid number";
       return;
     }
     if (value < static_cast<Field>(min) || value > static_cast<Field>(max)) {
       std::ostringstream message;
-      message << path.string() << ": slam." << name << " = " << value << " is outside " << min << " .. " << max;
+      message << path.string() << ": " << section_name << "." << name << " = " << value << " is outside " << min
+              << " .. " << max;
       error = message.str();
       return;
     }
@@ -47,8 +41,33 @@ std::string load_slam_config(const std::filesystem::path& path, slam::SlamConfig
   if (!error.empty()) return error;
   for (const auto& entry : section) {
     const auto key = entry.first.as<std::string>();
-    if (!known.contains(key)) return path.string() + ": slam." + key + " is not a known parameter";
+    if (!known.contains(key)) return path.string() + ": " + section_name + "." + key + " is not a known parameter";
   }
+  return {};
+}
+
+}  // namespace
+
+std::string load_slam_config(const std::filesystem::path& path, slam::SlamConfig& config) {
+  YAML::Node root;
+  try {
+    root = YAML::LoadFile(path.string());
+  } catch (const YAML::Exception& error) {
+    return path.string() + ": " + error.what();
+  }
+  if (const YAML::Node geometry = root["geometry"]) {
+    if (!geometry.IsMap()) return path.string() + ": 'geometry' must be a map of parameters";
+    if (auto error = load_section(path, geometry, "geometry", {}, config.geometry); !error.empty()) return error;
+  }
+  const YAML::Node section = root["slam"];
+  if (!section) return {};
+  if (!section.IsMap()) return path.string() + ": 'slam' must be a map of parameters";
+  if (const YAML::Node icp = section["icp_mode"]) {
+    const auto parsed = icp.IsScalar() ? slam::parse_icp_mode(icp.Scalar()) : std::nullopt;
+    if (!parsed) return path.string() + ": slam.icp_mode must be off, point_to_point or point_to_plane";
+    config.icp_mode = *parsed;
+  }
+  if (auto error = load_section(path, section, "slam", {"icp_mode"}, config); !error.empty()) return error;
   if (config.min_depth_m >= config.max_depth_m) return path.string() + ": slam.min_depth_m must be below slam.max_depth_m";
   return {};
 }
@@ -60,6 +79,11 @@ std::string describe_slam_config(slam::SlamConfig config) {
   config.visit_parameters([&](const char* name, auto& field, auto, auto, const char* unit, const char* doc) {
     text << "slam." << name << " = " << field << (unit[0] != '\0' ? " " : "") << unit << "  # " << doc << "\n";
   });
+  config.geometry.visit_parameters([&](auto name, auto& field, auto, auto, auto unit, auto doc) {
+    const std::string_view unit_text(unit);
+    text << "geometry." << name << " = " << field << (unit_text.empty() ? "" : " ") << unit_text << "  # " << doc
+         << "\n";
+  });
   return text.str();
 }
 
@@ -69,6 +93,9 @@ std::string slam_config_json(slam::SlamConfig config) {
   text << ", \"icp_mode\": \"" << slam::to_string(config.icp_mode) << "\"";
   config.visit_parameters([&](const char* name, auto& field, auto, auto, const char*, const char*) {
     text << ", \"" << name << "\": " << field;
+  });
+  config.geometry.visit_parameters([&](auto name, auto& field, auto, auto, auto, auto) {
+    text << ", \"geometry." << name << "\": " << field;
   });
   return text.str();
 }

@@ -5,6 +5,8 @@
 #include <algorithm>
 #include <chrono>
 #include <cmath>
+#include <stdexcept>
+#include <string>
 
 namespace rankslam::slam {
 namespace {
@@ -93,6 +95,12 @@ SlamLoop::SlamLoop(const SlamConfig& config, const hal::Calibration& calibration
   correspondence_sigma_m_.reserve(capacity);
   gray_.create(camera_.height(), camera_.width(), CV_8UC1);
   infrared_.create(camera_.height(), camera_.width(), CV_8UC1);
+  if (config_.mode == Mode::kGeometric) {
+    if (const std::string error = geometric_.configure(camera_, config_.geometry); !error.empty()) {
+      throw std::invalid_argument(error);
+    }
+    for (auto& features : geometric_features_) features = geometric_.make_features();
+  }
 }
 
 ImageSource SlamLoop::choose_source(const hal::RgbdFrame& frame) {
@@ -237,6 +245,7 @@ void SlamLoop::refine_with_icp(const TrackedFrame& target, const TrackedFrame& c
 }
 
 FrameResult SlamLoop::process(const hal::RgbdFrame& frame) {
+  if (config_.mode == Mode::kGeometric) return process_geometric(frame);
   FrameResult result;
   auto stage_start = Clock::now();
   const ImageSource source = choose_source(frame);
@@ -278,6 +287,7 @@ FrameResult SlamLoop::process(const hal::RgbdFrame& frame) {
     result.status = FrameStatus::kFirstFrame;
     result.T_world_cam = Eigen::Isometry3d::Identity();
     new_reference = true;
+    finish_frame(frame, have_depth, Eigen::Isometry3d::Identity(), result);
   } else {
     const TrackedFrame& previous = frames_[static_cast<std::size_t>(previous_)];
     const TrackedFrame& reference = frames_[static_cast<std::size_t>(reference_)];
@@ -331,20 +341,13 @@ FrameResult SlamLoop::process(const hal::RgbdFrame& frame) {
     }
     if (target != nullptr) {
       if (config_.icp_mode != IcpMode::kOff) refine_with_icp(*target, tracked, result);
-      result.T_world_cam = rigid(result.T_world_cam);
-      last_motion_ = rigid(previous.T_world_cam.inverse() * result.T_world_cam);
-      failed_in_a_row_ = 0;
       result.status = FrameStatus::kTracking;
     } else {
-      // Constant-velocity propagation keeps the pose continuous through a short gap; the
-      // reference stays, so the next good frame that sees it snaps back onto it. A long gap
-      // holds the pose instead (see max_extrapolated_frames).
       result.status = FrameStatus::kFailed;
       result.failure_reason = reason;
-      if (++failed_in_a_row_ > config_.max_extrapolated_frames) last_motion_ = Eigen::Isometry3d::Identity();
-      result.T_world_cam = rigid(previous.T_world_cam * last_motion_);
-      new_reference = false;
+      new_reference = false;  // the reference stays: the next frame that sees it snaps back
     }
+    finish_frame(frame, have_depth, previous.T_world_cam, result);
   }
   tracked.T_world_cam = result.T_world_cam;
   if (new_reference) {
@@ -353,8 +356,23 @@ FrameResult SlamLoop::process(const hal::RgbdFrame& frame) {
   }
   previous_ = current;
   result.new_reference = new_reference;
+  return result;
+}
 
-  stage_start = Clock::now();
+void SlamLoop::finish_frame(const hal::RgbdFrame& frame, bool have_depth, const Eigen::Isometry3d& T_world_previous,
+                            FrameResult& result) {
+  if (result.status == FrameStatus::kTracking) {
+    result.T_world_cam = rigid(result.T_world_cam);
+    last_motion_ = rigid(T_world_previous.inverse() * result.T_world_cam);
+    failed_in_a_row_ = 0;
+  } else if (result.status == FrameStatus::kFailed) {
+    // Constant-velocity extrapolation keeps the pose continuous through a short gap; a long gap
+    // holds the pose instead (see max_extrapolated_frames).
+    if (++failed_in_a_row_ > config_.max_extrapolated_frames) last_motion_ = Eigen::Isometry3d::Identity();
+    result.T_world_cam = rigid(T_world_previous * last_motion_);
+  }
+
+  const auto stage_start = Clock::now();
   const Eigen::Isometry3d since_keyframe = T_world_last_keyframe_.inverse() * result.T_world_cam;
   if (result.status == FrameStatus::kFirstFrame ||
       (result.status == FrameStatus::kTracking &&
@@ -366,6 +384,59 @@ FrameResult SlamLoop::process(const hal::RgbdFrame& frame) {
     ++keyframes_;
   }
   result.times.ms[kMapping] = elapsed_ms(stage_start);
+}
+
+FrameResult SlamLoop::process_geometric(const hal::RgbdFrame& frame) {
+  FrameResult result;
+  auto stage_start = Clock::now();
+  const bool have_depth = valid_image(frame.depth, CV_16UC1, camera_.width(), camera_.height());
+  gray_valid_ = valid_image(frame.rgb, CV_8UC3, camera_.width(), camera_.height());  // map colour only
+  infrared_valid_ = false;
+  result.times.ms[kPreprocess] = elapsed_ms(stage_start);
+
+  stage_start = Clock::now();
+  const int current = geometric_previous_ == 0 ? 1 : 0;
+  geometry::GeometricFeatures& features = geometric_features_[static_cast<std::size_t>(current)];
+  const geometry::GeometryStatus extracted =
+      have_depth ? geometric_.extract(frame.depth, features) : geometry::GeometryStatus::kInvalidImage;
+  if (extracted != geometry::GeometryStatus::kOk) features.count = 0;
+  result.features = features.count;
+  result.times.ms[kFeatures] = elapsed_ms(stage_start);
+
+  if (geometric_previous_ < 0) {
+    result.status = FrameStatus::kFirstFrame;
+    result.T_world_cam = Eigen::Isometry3d::Identity();
+    finish_frame(frame, have_depth, Eigen::Isometry3d::Identity(), result);
+  } else {
+    std::string_view reason;
+    if (!have_depth) reason = "no usable depth";
+    else if (extracted != geometry::GeometryStatus::kOk) reason = geometry::to_string(extracted);
+    bool tracked = false;
+    if (reason.empty()) {
+      const geometry::FrameRegistration registration = geometric_.register_frames(
+          geometric_features_[static_cast<std::size_t>(geometric_previous_)], features, last_motion_);
+      const geometry::StageTimes& times = geometric_.last_times();
+      result.times.ms[kMatching] = times.matching_ms;
+      result.times.ms[kEstimation] = times.msse_ms;
+      result.times.ms[kIcp] = times.icp_ms;
+      result.matches = registration.matches;
+      // With the ICP stage the final inliers are its point-to-plane inliers; without it, MSSE's.
+      result.inliers = registration.refined_from != geometry::RefinementStart::kNone ? registration.icp_inliers
+                                                                                     : registration.inliers;
+      MotionEstimate estimate;
+      estimate.ok = registration.ok;
+      estimate.T_target_source = registration.T_previous_current;
+      estimate.inliers = result.inliers;
+      estimate.failure_reason = geometry::to_string(registration.status);
+      tracked = accept(estimate, T_world_geometric_previous_, T_world_geometric_previous_, result.T_world_cam, reason);
+    }
+    result.status = tracked ? FrameStatus::kTracking : FrameStatus::kFailed;
+    if (!tracked) result.failure_reason = reason;
+    finish_frame(frame, have_depth, T_world_geometric_previous_, result);
+  }
+  // A frame without features cannot be the next frame's target; the last good one stays.
+  if (features.count > 0 || geometric_previous_ < 0) geometric_previous_ = current;
+  T_world_geometric_previous_ = result.T_world_cam;
   return result;
 }
 

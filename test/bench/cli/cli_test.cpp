@@ -6,6 +6,8 @@
 #include <sys/wait.h>
 
 #include <array>
+#include <cmath>
+#include <cstdlib>
 #include <cstdio>
 #include <filesystem>
 #include <fstream>
@@ -156,6 +158,40 @@ TEST(Cli, SimulatedCorridorLoopReplays) {
   const auto replayed = run("replay " + recording.string() + " --out " + out.string() + " --quiet");
   ASSERT_EQ(replayed.exit_code, 0) << replayed.output;
   EXPECT_NE(slurp(out / "report.json").find("\"frames\": 90"), std::string::npos);
+}
+
+// A number in report.json; NaN when the key is absent or null.
+double report_number(const std::string& report, const std::string& key) {
+  const std::string needle = "\"" + key + "\": ";
+  const auto at = report.find(needle);
+  if (at == std::string::npos) return std::nan("");
+  const char* start = report.c_str() + at + needle.size();
+  char* end = nullptr;
+  const double value = std::strtod(start, &end);
+  return end == start ? std::nan("") : value;
+}
+
+TEST(Cli, GeometricModeTracksPlainZigzagPanelsWherePhotometricFails) {
+  const fs::path recording = fresh_dir("rankslam_cli_zigzag");
+  const auto simulated = run("simulate zigzag-plain --out " + recording.string() + " --frames 150");
+  ASSERT_EQ(simulated.exit_code, 0) << simulated.output;
+  const fs::path geometric_out = fresh_dir("rankslam_cli_zigzag_geometric");
+  auto replayed = run("replay " + recording.string() + " --out " + geometric_out.string() + " --mode geometric --quiet");
+  ASSERT_EQ(replayed.exit_code, 0) << replayed.output;
+  const std::string geometric = slurp(geometric_out / "report.json");
+  const fs::path photometric_out = fresh_dir("rankslam_cli_zigzag_photometric");
+  replayed = run("replay " + recording.string() + " --out " + photometric_out.string() + " --mode photometric --quiet");
+  ASSERT_EQ(replayed.exit_code, 0) << replayed.output;
+  const std::string photometric = slurp(photometric_out / "report.json");
+
+  const double geometric_ate = report_number(geometric, "ate_rmse_m");
+  const double photometric_ate = report_number(photometric, "ate_rmse_m");
+  const double photometric_failed = report_number(photometric, "failed_frames");
+  std::printf("zigzag-plain, 150 frames: geometric ATE %.4f m (%g failed), photometric ATE %.4f m (%g failed)\n",
+              geometric_ate, report_number(geometric, "failed_frames"), photometric_ate, photometric_failed);
+  EXPECT_NE(geometric.find("\"mode\": \"geometric\""), std::string::npos);
+  EXPECT_LE(geometric_ate, 0.02);
+  EXPECT_TRUE(photometric_failed > 75 || photometric_ate >= 3 * geometric_ate) << photometric;
 }
 
 TEST(Cli, ReplayWithoutRecordingSimulatesTheDefaultScene) {

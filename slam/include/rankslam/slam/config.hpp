@@ -1,5 +1,7 @@
 #pragma once
 
+#include "rankslam/geometry/config.hpp"
+
 #include <cstdint>
 #include <optional>
 #include <string_view>
@@ -128,6 +130,9 @@ struct SlamConfig {
   double icp_max_correction_m = 0.02;
   double icp_max_correction_deg = 1.0;
   int seed = 1;
+
+  /// The depth-only front-end of the geometric mode (ALGORITHMS.md §3–4); its own parameter list.
+  geometry::GeometryConfig geometry;
 
   /// Calls visit(name, field, min, max, unit, doc) for every numeric parameter.
   template <typename Visitor>

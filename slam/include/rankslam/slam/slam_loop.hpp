@@ -1,6 +1,7 @@
 #pragma once
 
 #include "rankslam/hal/calibration.hpp"
+#include "rankslam/geometry/frontend.hpp"
 #include "rankslam/hal/messages.hpp"
 #include "rankslam/slam/camera.hpp"
 #include "rankslam/slam/config.hpp"
@@ -116,6 +117,12 @@ class SlamLoop {
                             std::string_view& reason) const;
   void refine_with_icp(const TrackedFrame& target, const TrackedFrame& current, FrameResult& result);
   void add_keyframe_to_map(const hal::RgbdFrame& frame, const Eigen::Isometry3d& T_world_cam);
+  /// Geometric mode: depth-only registration of each frame against the previous one.
+  [[nodiscard]] FrameResult process_geometric(const hal::RgbdFrame& frame);
+  /// The tail every mode shares: a failed frame extrapolates or holds the pose, a tracked one
+  /// updates the motion model; then key-frame and map.
+  void finish_frame(const hal::RgbdFrame& frame, bool have_depth, const Eigen::Isometry3d& T_world_previous,
+                    FrameResult& result);
 
   SlamConfig config_;
   DepthCameraModel camera_;
@@ -143,6 +150,12 @@ class SlamLoop {
   double previous_stamp_s_ = 0.0;
   /// Features of the other image kind, at a frame where the kind switches.
   PhotometricFeatures bridge_;
+
+  // Geometric mode only (sized at construction when the mode is geometric).
+  geometry::GeometricFrontend geometric_;
+  std::array<geometry::GeometricFeatures, 2> geometric_features_;
+  int geometric_previous_ = -1;
+  Eigen::Isometry3d T_world_geometric_previous_ = Eigen::Isometry3d::Identity();
 
   std::vector<FeatureMatch> matches_;
   std::vector<Eigen::Vector3f> source_points_;
