@@ -519,7 +519,7 @@ TEST_F(SocketCanVm, InterfaceRemovalIsAFaultAndTheBusReopensOnANewInterface) {
 }
 
 TEST(AllocationCounter, SeesAllocations) {
-  vm_test::CountAllocations count;
+  test_support::CountAllocations count;
   std::vector<int> values(1000, 1);
   volatile int sink = values[999];
   (void)sink;
@@ -545,7 +545,7 @@ TEST_F(SocketCanVm, SteadyStateReceiveAndSendAllocateNothing) {
   ReadStatus idle = ReadStatus::kOk;
   long allocations = 0;
   {
-    vm_test::CountAllocations count;
+    test_support::CountAllocations count;
     for (std::size_t i = 0; i < kFrames; ++i) {
       received[i] = bus.receive(frame, 2000ms);
       sent[i] = bus.send(out);

@@ -132,7 +132,7 @@ class V4l2Vm : public ::testing::Test {
 };
 
 TEST(AllocationCounter, SeesAllocations) {
-  vm_test::CountAllocations count;
+  test_support::CountAllocations count;
   std::vector<int> values(1000, 1);
   volatile int sink = values[999];
   (void)sink;
@@ -406,7 +406,7 @@ TEST_F(V4l2Vm, SteadyStateCaptureAllocatesNothing) {
   std::array<ReadStatus, kReads> statuses{};
   long allocations = 0;
   {
-    vm_test::CountAllocations count;
+    test_support::CountAllocations count;
     for (auto& status : statuses) status = camera.read(frame, 1000ms);
     allocations = count.allocations();
   }

@@ -1,137 +1,22 @@
 // Fixed memory in the per-frame loop: after set-up and one warm-up frame, extract() and
 // register_frames() (cloud, keypoints, SHOT, matching, MSSE, ICP) allocate nothing. Counts global
-// operator new/delete (replaced below) and, outside sanitizer builds, malloc itself, because
+// operator new/delete (replaced by the allocation-counter test library) and, outside sanitizer builds, malloc itself, because
 // Eigen's heap temporaries bypass operator new.
 
-#include <atomic>
-#include <cerrno>
-#include <cstddef>
-#include <cstdlib>
-#include <new>
 #include <vector>
 
 #include <gtest/gtest.h>
+
+#include "allocation_counter.hpp"
 
 #include "rankslam/geometry/frontend.hpp"
 #include "rankslam/slam/camera.hpp"
 #include "synthetic_scene.hpp"
 
-namespace {
-
-std::atomic<bool> g_counting{false};
-std::atomic<long> g_new_calls{0};
-std::atomic<long> g_malloc_calls{0};
-
-void* counted_new(std::size_t size) {
-  if (g_counting.load(std::memory_order_relaxed)) g_new_calls.fetch_add(1);
-  if (void* p = std::malloc(size == 0 ? 1 : size)) return p;
-  throw std::bad_alloc();
-}
-
-void* counted_new_aligned(std::size_t size, std::align_val_t alignment) {
-  if (g_counting.load(std::memory_order_relaxed)) g_new_calls.fetch_add(1);
-  const auto align = static_cast<std::size_t>(alignment);
-  const std::size_t rounded = ((size == 0 ? 1 : size) + align - 1) / align * align;
-  if (void* p = std::aligned_alloc(align, rounded)) return p;
-  throw std::bad_alloc();
-}
-
-}  // namespace
-
-void* operator new(std::size_t size) { return counted_new(size); }
-void* operator new[](std::size_t size) { return counted_new(size); }
-void* operator new(std::size_t size, const std::nothrow_t&) noexcept {
-  try {
-    return counted_new(size);
-  } catch (...) {
-    return nullptr;
-  }
-}
-void* operator new[](std::size_t size, const std::nothrow_t&) noexcept {
-  try {
-    return counted_new(size);
-  } catch (...) {
-    return nullptr;
-  }
-}
-void* operator new(std::size_t size, std::align_val_t alignment) {
-  return counted_new_aligned(size, alignment);
-}
-void* operator new[](std::size_t size, std::align_val_t alignment) {
-  return counted_new_aligned(size, alignment);
-}
-void operator delete(void* p) noexcept { std::free(p); }
-void operator delete[](void* p) noexcept { std::free(p); }
-void operator delete(void* p, std::size_t) noexcept { std::free(p); }
-void operator delete[](void* p, std::size_t) noexcept { std::free(p); }
-void operator delete(void* p, std::align_val_t) noexcept { std::free(p); }
-void operator delete[](void* p, std::align_val_t) noexcept { std::free(p); }
-void operator delete(void* p, std::size_t, std::align_val_t) noexcept { std::free(p); }
-void operator delete[](void* p, std::size_t, std::align_val_t) noexcept { std::free(p); }
-
-// glibc lets a program replace malloc; forwarding to its __libc_* entry points keeps one heap.
-// Sanitizers interpose malloc themselves, so there only operator new is counted.
-#if defined(__GLIBC__) && !defined(__SANITIZE_ADDRESS__) && !defined(__SANITIZE_THREAD__)
-#define RANKSLAM_COUNT_MALLOC 1
-extern "C" {
-void* __libc_malloc(std::size_t size);
-void* __libc_calloc(std::size_t count, std::size_t size);
-void* __libc_realloc(void* p, std::size_t size);
-void* __libc_memalign(std::size_t alignment, std::size_t size);
-void __libc_free(void* p);
-
-namespace {
-void note_malloc() {
-  if (g_counting.load(std::memory_order_relaxed)) g_malloc_calls.fetch_add(1);
-}
-}  // namespace
-
-void* malloc(std::size_t size) noexcept {
-  note_malloc();
-  return __libc_malloc(size);
-}
-void* calloc(std::size_t count, std::size_t size) noexcept {
-  note_malloc();
-  return __libc_calloc(count, size);
-}
-void* realloc(void* p, std::size_t size) noexcept {
-  note_malloc();
-  return __libc_realloc(p, size);
-}
-void* memalign(std::size_t alignment, std::size_t size) noexcept {
-  note_malloc();
-  return __libc_memalign(alignment, size);
-}
-void* aligned_alloc(std::size_t alignment, std::size_t size) noexcept {
-  note_malloc();
-  return __libc_memalign(alignment, size);
-}
-int posix_memalign(void** out, std::size_t alignment, std::size_t size) noexcept {
-  note_malloc();
-  void* p = __libc_memalign(alignment, size);
-  if (p == nullptr) return ENOMEM;
-  *out = p;
-  return 0;
-}
-void free(void* p) noexcept { __libc_free(p); }
-}  // extern "C"
-#endif
 namespace rankslam::geometry {
 namespace {
 
-class CountAllocations {
- public:
-  CountAllocations() {
-    g_new_calls = 0;
-    g_malloc_calls = 0;
-    g_counting = true;
-  }
-  ~CountAllocations() { g_counting = false; }
-  CountAllocations(const CountAllocations&) = delete;
-  CountAllocations& operator=(const CountAllocations&) = delete;
-  long new_calls() const { return g_new_calls.load(); }
-  long malloc_calls() const { return g_malloc_calls.load(); }
-};
+using test_support::CountAllocations;
 
 TEST(GeometryAllocations, CounterSeesAllocations) {
   long new_calls = 0;
@@ -147,11 +32,9 @@ TEST(GeometryAllocations, CounterSeesAllocations) {
     malloc_calls = count.malloc_calls();
   }
   EXPECT_GE(new_calls, 2);
-#ifdef RANKSLAM_COUNT_MALLOC
-  EXPECT_GE(malloc_calls, 3);
-#else
-  (void)malloc_calls;
-#endif
+  if (test_support::counts_malloc()) {
+    EXPECT_GE(malloc_calls, 3);
+  }
 }
 
 TEST(GeometryAllocations, NoneInTheSteadyState) {

@@ -381,7 +381,7 @@ TEST(PoseBroadcaster, SteadyStateDoesNotAllocate) {
   sample.inlier_percent = 50;
   long allocations = 0;
   {
-    const vm_test::CountAllocations count;
+    const test_support::CountAllocations count;
     for (int frame = 0; frame < 300; ++frame) {
       sample.frame_sequence = static_cast<std::uint32_t>(frame);
       sample.registered = frame % 7 != 0;

@@ -594,7 +594,7 @@ TEST(WheelOdometry, HistoryIsABoundedRingThatDoesNotAllocate) {
   feed(odometry, source, WheelFrameResult::kBaseline);
   long allocations = -1;
   {
-    const vm_test::CountAllocations count;
+    const test_support::CountAllocations count;
     for (int i = 0; i < 500; ++i) {
       source.advance(0.004, 0.006);
       odometry.update(encode_wheel_ticks(source.ticks(), wheels.can_id, source.stamp_ns()));

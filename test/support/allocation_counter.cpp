@@ -9,20 +9,25 @@
 namespace {
 
 std::atomic<bool> g_counting{false};
-std::atomic<long> g_allocations{0};
+std::atomic<long> g_new_calls{0};
+std::atomic<long> g_malloc_calls{0};
 
-void note_allocation() {
-  if (g_counting.load(std::memory_order_relaxed)) g_allocations.fetch_add(1, std::memory_order_relaxed);
+void note_new() {
+  if (g_counting.load(std::memory_order_relaxed)) g_new_calls.fetch_add(1, std::memory_order_relaxed);
+}
+
+[[maybe_unused]] void note_malloc() {
+  if (g_counting.load(std::memory_order_relaxed)) g_malloc_calls.fetch_add(1, std::memory_order_relaxed);
 }
 
 void* counted_new(std::size_t size) {
-  note_allocation();
+  note_new();
   if (void* p = std::malloc(size == 0 ? 1 : size)) return p;
   throw std::bad_alloc();
 }
 
 void* counted_new_aligned(std::size_t size, std::align_val_t alignment) {
-  note_allocation();
+  note_new();
   const auto align = static_cast<std::size_t>(alignment);
   const std::size_t rounded = ((size == 0 ? 1 : size) + align - 1) / align * align;
   if (void* p = std::aligned_alloc(align, rounded)) return p;
@@ -59,9 +64,9 @@ void operator delete(void* p, std::size_t, std::align_val_t) noexcept { std::fre
 void operator delete[](void* p, std::size_t, std::align_val_t) noexcept { std::free(p); }
 
 // glibc lets a program replace malloc; forwarding to its __libc_* entry points keeps one heap.
-// The counting new above calls malloc as well, so one operator new counts twice: only zero
-// matters here.
+// Sanitizers interpose malloc themselves, so there only operator new is counted.
 #if defined(__GLIBC__) && !defined(__SANITIZE_ADDRESS__) && !defined(__SANITIZE_THREAD__)
+#define RANKSLAM_COUNT_MALLOC 1
 extern "C" {
 void* __libc_malloc(std::size_t size);
 void* __libc_calloc(std::size_t count, std::size_t size);
@@ -70,27 +75,27 @@ void* __libc_memalign(std::size_t alignment, std::size_t size);
 void __libc_free(void* p);
 
 void* malloc(std::size_t size) noexcept {
-  note_allocation();
+  note_malloc();
   return __libc_malloc(size);
 }
 void* calloc(std::size_t count, std::size_t size) noexcept {
-  note_allocation();
+  note_malloc();
   return __libc_calloc(count, size);
 }
 void* realloc(void* p, std::size_t size) noexcept {
-  note_allocation();
+  note_malloc();
   return __libc_realloc(p, size);
 }
 void* memalign(std::size_t alignment, std::size_t size) noexcept {
-  note_allocation();
+  note_malloc();
   return __libc_memalign(alignment, size);
 }
 void* aligned_alloc(std::size_t alignment, std::size_t size) noexcept {
-  note_allocation();
+  note_malloc();
   return __libc_memalign(alignment, size);
 }
 int posix_memalign(void** out, std::size_t alignment, std::size_t size) noexcept {
-  note_allocation();
+  note_malloc();
   void* p = __libc_memalign(alignment, size);
   if (p == nullptr) return ENOMEM;
   *out = p;
@@ -100,15 +105,26 @@ void free(void* p) noexcept { __libc_free(p); }
 }  // extern "C"
 #endif
 
-namespace rankslam::vm_test {
+namespace rankslam::test_support {
+
+bool counts_malloc() {
+#ifdef RANKSLAM_COUNT_MALLOC
+  return true;
+#else
+  return false;
+#endif
+}
 
 CountAllocations::CountAllocations() {
-  g_allocations = 0;
+  g_new_calls = 0;
+  g_malloc_calls = 0;
   g_counting = true;
 }
 
 CountAllocations::~CountAllocations() { g_counting = false; }
 
-long CountAllocations::allocations() const { return g_allocations.load(); }
+long CountAllocations::new_calls() const { return g_new_calls.load(); }
 
-}  // namespace rankslam::vm_test
+long CountAllocations::malloc_calls() const { return g_malloc_calls.load(); }
+
+}  // namespace rankslam::test_support
