@@ -121,7 +121,7 @@ enum class RelativeMotionStatus : std::uint8_t {
 
 /// Differential-drive odometry from the base controller's WheelTicks frames.
 ///
-/// Each accepted frame advances the pose along the exact circular arc the two wheel travels
+/// Each accepted frame advances the pose along the exact circular arc the two wheels' travels
 /// describe (Δs = (Δs_r + Δs_l)/2, Δθ = (Δs_r − Δs_l)/b, chord Δs·sin(Δθ/2)/(Δθ/2) at heading
 /// θ + Δθ/2), and the covariance by first-order propagation of the per-wheel noise model
 /// through the step's Jacobians, so it grows with distance and with turning.
