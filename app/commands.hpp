@@ -40,6 +40,14 @@ struct RunArgs {
   std::string mode;
 };
 
+struct RecordArgs {
+  std::filesystem::path out;
+  std::filesystem::path config;  ///< Empty: the first OpenNI2 device, no CAN log.
+  std::uint32_t frames = 0;      ///< Stop after this many frames (0 = no limit).
+  double seconds = 0.0;          ///< Stop after this long (0 = no limit).
+};
+
+[[nodiscard]] int run_record(const RecordArgs& args);
 [[nodiscard]] int run_replay(const ReplayArgs& args);
 [[nodiscard]] int run_simulate(const SimulateArgs& args);
 [[nodiscard]] int run_eval(const EvalArgs& args);

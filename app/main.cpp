@@ -51,6 +51,14 @@ int main(int argc, char** argv) {
   run_cmd->add_option("--out,-o", run.out, "Where trajectory and map are flushed on exit");
   run_cmd->add_option("--mode,-m", run.mode, "Registration: baseline, photometric, geometric or fused (default: best implemented)");
 
+  RecordArgs record;
+  auto* record_cmd = app.add_subcommand("record", "Record the live sensors (camera, CAN) into a recording directory (TUM layout, see README)");
+  record_cmd->add_option("--out,-o", record.out, "Output recording directory (absent or empty)")->required();
+  record_cmd->add_option("--config,-c", record.config, "Robot configuration naming camera and CAN interface (default: first OpenNI2 device, no CAN)")
+      ->check(CLI::ExistingFile);
+  record_cmd->add_option("--frames,-n", record.frames, "Stop after this many frames (0 = until stopped)");
+  record_cmd->add_option("--seconds,-s", record.seconds, "Stop after this many seconds (0 = until stopped)")->check(CLI::NonNegativeNumber);
+
   try {
     app.parse(argc, argv);
   } catch (const CLI::CallForHelp& e) {
@@ -69,6 +77,7 @@ int main(int argc, char** argv) {
     if (simulate_cmd->parsed()) return run_simulate(simulate);
     if (eval_cmd->parsed()) return run_eval(eval);
     if (run_cmd->parsed()) return run_live(run);
+    if (record_cmd->parsed()) return run_record(record);
   } catch (const std::exception& error) {
     std::cerr << "internal error: " << error.what() << "\n";
     return kExitInternal;

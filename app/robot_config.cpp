@@ -13,7 +13,7 @@ namespace {
 const std::set<std::string> kSections = {"robot", "camera", "can", "output", "slam"};
 const std::map<std::string, std::set<std::string>> kKeys = {
     {"robot", {"name"}},
-    {"camera", {"source", "replay_rate", "max_frames", "exit_after_end_s"}},
+    {"camera", {"source", "replay_rate", "max_frames", "exit_after_end_s", "calibration", "width", "height", "fps", "ir"}},
     {"can", {"interface", "play_wheel_frames"}},
     {"output", {"pose_rate_hz", "heartbeat_rate_hz", "watchdog_timeout_s", "lost_after_failed_frames", "dir",
                 "max_trajectory_poses"}},
@@ -77,6 +77,20 @@ std::string load_robot_config(const std::filesystem::path& path, RobotConfig& co
   check(read(camera, "camera", "replay_rate", config.replay_rate));
   check(read(camera, "camera", "max_frames", config.max_frames));
   check(read(camera, "camera", "exit_after_end_s", config.exit_after_end_s));
+  std::string calibration;
+  check(read(camera, "camera", "calibration", calibration));
+  if (!calibration.empty()) {
+    config.camera_calibration = calibration;
+    if (config.camera_calibration.is_relative()) config.camera_calibration = path.parent_path() / config.camera_calibration;
+  }
+  check(read(camera, "camera", "width", config.camera_width));
+  check(read(camera, "camera", "height", config.camera_height));
+  check(read(camera, "camera", "fps", config.camera_fps));
+  check(read(camera, "camera", "ir", config.camera_ir));
+  if (error.empty() && (config.camera_width < 1 || config.camera_width > 4096 || config.camera_height < 1 ||
+                        config.camera_height > 4096 || config.camera_fps < 1 || config.camera_fps > 240)) {
+    error = file + "camera.width/height must be 1 .. 4096 and camera.fps 1 .. 240";
+  }
   if (error.empty() && !(config.replay_rate >= 0.0 && config.replay_rate <= 100.0)) {
     error = file + "camera.replay_rate must be within 0 .. 100";
   }
@@ -84,6 +98,7 @@ std::string load_robot_config(const std::filesystem::path& path, RobotConfig& co
   const YAML::Node can = root["can"];
   if (can) {
     check(read(can, "can", "interface", config.can_interface));
+    config.can_interface_given = static_cast<bool>(can["interface"]);
     check(read(can, "can", "play_wheel_frames", config.play_wheel_frames));
   }
   if (error.empty() && (config.can_interface.empty() || config.can_interface.size() >= 16)) {
@@ -116,6 +131,9 @@ std::string describe_robot_config(const RobotConfig& config) {
   std::ostringstream text;
   text << "camera.source = "
        << (config.camera_source == CameraSource::kReplay ? "replay:" : "openni2:") << config.camera_location << "\n"
+       << "camera.calibration = " << config.camera_calibration.string() << "  # openni2: empty = from the field of view\n"
+       << "camera.mode = " << config.camera_width << "x" << config.camera_height << "@" << config.camera_fps
+       << (config.camera_ir ? " + IR" : "") << "  # openni2 only\n"
        << "camera.replay_rate = " << config.replay_rate << "  # x recorded rate, 0 = lossless\n"
        << "camera.max_frames = " << config.max_frames << "  # 0 = all\n"
        << "camera.exit_after_end_s = " << config.exit_after_end_s << " s  # negative = until SIGINT/SIGTERM\n"

@@ -22,6 +22,14 @@ struct RobotConfig {
   /// Recording directory (replay; relative paths are taken from the YAML file's directory) or
   /// device URI (OpenNI2; empty = first device).
   std::string camera_location;
+  /// camera.calibration: calibration.yaml for the OpenNI2 camera (relative to the YAML file);
+  /// empty = intrinsics from the device's field of view.
+  std::filesystem::path camera_calibration;
+  /// camera.width/height/fps: OpenNI2 video mode; camera.ir: also stream IR.
+  int camera_width = 640;
+  int camera_height = 480;
+  int camera_fps = 30;
+  bool camera_ir = false;
   /// camera.replay_rate: multiple of the recorded frame rate; 0 = lossless, as fast as the loop runs.
   double replay_rate = 1.0;
   /// camera.max_frames: replay at most this many frames, 0 = all.
@@ -31,6 +39,8 @@ struct RobotConfig {
   double exit_after_end_s = 2.0;
   /// can.interface: SocketCAN interface for pose output and wheel input (can0, vcan0, ...).
   std::string can_interface = "can0";
+  /// can.interface was given in the file (rankslam record logs the bus only then).
+  bool can_interface_given = false;
   /// can.play_wheel_frames: replay only; play the recording's can.log onto the bus on its
   /// recorded timing, as the base controller would send it.
   bool play_wheel_frames = true;
@@ -48,5 +58,17 @@ struct RobotConfig {
 
 /// Effective values, one "name = value  # doc" line each.
 [[nodiscard]] std::string describe_robot_config(const RobotConfig& config);
+
+}  // namespace rankslam::app
+
+namespace rankslam::openni2 {
+struct OpenNI2Options;
+}
+
+namespace rankslam::app {
+
+/// OpenNI2 driver options for a robot configuration with camera.source openni2: (reads
+/// camera.calibration when given). Empty string on success, else the error naming the file.
+[[nodiscard]] std::string openni2_options_from(const RobotConfig& config, openni2::OpenNI2Options& options);
 
 }  // namespace rankslam::app

@@ -10,6 +10,7 @@
 #include "rankslam/hal/atomic_file.hpp"
 #include "rankslam/nav/pose_broadcaster.hpp"
 #include "rankslam/nav/wheel_frame.hpp"
+#include "rankslam/openni2/openni2_camera.hpp"
 #include "rankslam/replay/replay_camera.hpp"
 #include "rankslam/slam/slam_loop.hpp"
 #include "rankslam/socketcan/socketcan_bus.hpp"
@@ -218,10 +219,6 @@ int run_live(const RunArgs& args) {
     std::cerr << "error: " << args.config.string() << ": no output directory (output.dir or --out)\n";
     return kExitUsage;
   }
-  if (robot.camera_source == CameraSource::kOpenNI2) {
-    std::cerr << "error: " << args.config.string() << ": camera.source openni2: needs the OpenNI2 driver, which is not part of this build yet\n";
-    return kExitNotAvailable;
-  }
   std::error_code ec;
   fs::create_directories(out, ec);
   if (!fs::is_directory(out)) {
@@ -231,15 +228,32 @@ int run_live(const RunArgs& args) {
 
   // Set-up: everything that may fail or allocate happens here.
   replay::Recording recording;
-  if (auto error = replay::open_recording(robot.camera_location, recording); !error.empty()) {
-    std::cerr << "error: " << args.config.string() << ": camera.source: " << error << "\n";
-    return kExitInput;
+  std::unique_ptr<hal::DepthCamera> camera_driver;
+  replay::ReplayDepthCamera* replay_camera = nullptr;
+  openni2::OpenNI2Camera* openni2_camera = nullptr;
+  if (robot.camera_source == CameraSource::kOpenNI2) {
+    openni2::OpenNI2Options openni2_options;
+    if (auto error = openni2_options_from(robot, openni2_options); !error.empty()) {
+      std::cerr << "error: " << args.config.string() << ": camera.calibration: " << error << "\n";
+      return kExitInput;
+    }
+    auto driver = std::make_unique<openni2::OpenNI2Camera>(openni2_options);
+    openni2_camera = driver.get();
+    camera_driver = std::move(driver);
+  } else {
+    if (auto error = replay::open_recording(robot.camera_location, recording); !error.empty()) {
+      std::cerr << "error: " << args.config.string() << ": camera.source: " << error << "\n";
+      return kExitInput;
+    }
+    for (const auto& warning : recording.warnings) std::cerr << "warning: " << warning << "\n";
+    replay::ReplayOptions replay_options;
+    replay_options.rate = robot.replay_rate;
+    replay_options.max_frames = robot.max_frames;
+    auto driver = std::make_unique<replay::ReplayDepthCamera>(recording, replay_options);
+    replay_camera = driver.get();
+    camera_driver = std::move(driver);
   }
-  for (const auto& warning : recording.warnings) std::cerr << "warning: " << warning << "\n";
-  replay::ReplayOptions replay_options;
-  replay_options.rate = robot.replay_rate;
-  replay_options.max_frames = robot.max_frames;
-  replay::ReplayDepthCamera camera(recording, replay_options);
+  hal::DepthCamera& camera = *camera_driver;
   if (auto error = camera.open(); !error.empty()) {
     std::cerr << "error: " << error << "\n";
     return kExitInput;
@@ -260,9 +274,12 @@ int run_live(const RunArgs& args) {
   }
 
   std::cout << "robot configuration " << args.config.string() << "\n"
-            << describe_robot_config(robot) << "camera: replay of " << recording.root.string() << ", "
-            << camera.frame_count() << " frames, " << recording.can_frames.size() << " CAN frames, calibration "
-            << calibration.source << "\n"
+            << describe_robot_config(robot) << "camera: "
+            << (openni2_camera != nullptr ? openni2_camera->describe()
+                                          : "replay of " + recording.root.string() + ", " +
+                                                std::to_string(replay_camera->frame_count()) + " frames, " +
+                                                std::to_string(recording.can_frames.size()) + " CAN frames")
+            << ", calibration " << calibration.source << "\n"
             << describe_slam_config(slam_config) << std::flush;
 
   slam::SlamLoop loop(slam_config, calibration);
@@ -305,7 +322,9 @@ int run_live(const RunArgs& args) {
       continue;
     }
     const hal::ReadStatus status = camera.read(frame, std::chrono::milliseconds(100));
-    for (const auto& warning : camera.take_warnings()) std::cerr << "warning: " << warning << "\n";
+    if (replay_camera != nullptr) {
+      for (const auto& warning : replay_camera->take_warnings()) std::cerr << "warning: " << warning << "\n";
+    }
     if (status == hal::ReadStatus::kEndOfStream) {
       std::cout << "end of stream after " << trajectory.size() << " frames" << std::endl;
       end_time = std::chrono::steady_clock::now();
@@ -345,7 +364,7 @@ int run_live(const RunArgs& args) {
   if (player) player->stop();
   stop_output = true;
   sender.join();
-  const replay::ReplayCounters replay_counters = camera.counters();
+  const replay::ReplayCounters replay_counters = replay_camera != nullptr ? replay_camera->counters() : replay::ReplayCounters{};
   camera.close();
 
   // Outputs, each written atomically: an interrupted run never leaves half a file.
@@ -361,7 +380,14 @@ int run_live(const RunArgs& args) {
   JsonWriter json;
   json.begin_object();
   json.string("config", args.config.string());
-  json.string("camera", "replay:" + recording.root.string());
+  json.string("camera", (openni2_camera != nullptr ? "openni2:" + robot.camera_location : "replay:" + recording.root.string()));
+  if (openni2_camera != nullptr) {
+    const openni2::OpenNI2Counters& c = openni2_camera->counters();
+    json.integer("camera_device_dropped", static_cast<long long>(c.dropped));
+    json.integer("camera_unpaired", static_cast<long long>(c.unpaired));
+    json.integer("camera_faults", static_cast<long long>(c.faults));
+    json.integer("camera_reopens", static_cast<long long>(c.reopens));
+  }
   json.string("can_interface", robot.can_interface);
   json.integer("frames", static_cast<long long>(trajectory.size()));
   json.integer("failed_frames", failed_frames);
