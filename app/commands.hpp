@@ -17,6 +17,7 @@ struct ReplayArgs {
   double rate = 0.0;
   std::uint32_t max_frames = 0;
   bool quiet = false;
+  bool no_wheels = false;  ///< Ignore the recording's can.log: the vision-only run.
 };
 
 struct SimulateArgs {

@@ -3,6 +3,7 @@
 #include "exit_codes.hpp"
 #include "json_writer.hpp"
 #include "progress.hpp"
+#include "wheel_prior.hpp"
 
 #include "rankslam/eval/metrics.hpp"
 #include "rankslam/eval/plot.hpp"
@@ -41,6 +42,51 @@ Percentiles percentiles(std::vector<double> values) {
   result.p90 = at(0.9);
   result.max = values.back();
   return result;
+}
+
+/// Frames by the status a consumer of the pose sees: TRACKING (registered), DEGRADED (the wheels
+/// carry the pose), LOST (neither: extrapolated or held).
+struct StatusCounts {
+  int tracking = 0;
+  int degraded = 0;
+  int lost = 0;
+  int disagreements = 0;   ///< registrations that disagreed with the wheels
+  int wheels_trusted = 0;  ///< of which the wheels overruled a weak registration
+  void add(const slam::FrameResult& result) {
+    switch (result.status) {
+      case slam::FrameStatus::kFirstFrame:
+      case slam::FrameStatus::kTracking: ++tracking; break;
+      case slam::FrameStatus::kWheels: ++degraded; break;
+      case slam::FrameStatus::kFailed: ++lost; break;
+    }
+    if (result.wheels.disagree) ++disagreements;
+    if (result.wheels.wheels_trusted) ++wheels_trusted;
+  }
+};
+
+/// One line of frames.csv.
+struct FrameRecord {
+  double stamp_s = 0.0;
+  slam::FrameStatus status = slam::FrameStatus::kFirstFrame;
+  int inliers = 0;
+  slam::WheelCheck wheels;
+};
+
+/// Per-frame status and how vision compared with the wheels, for plots and checks.
+std::string frames_csv(const std::vector<FrameRecord>& records) {
+  std::string text =
+      "# stamp status inliers prior compared frame_distance_sq window_distance_sq disagree vision_trusted "
+      "wheels_trusted slip_event\n";
+  char line[256];
+  for (const FrameRecord& r : records) {
+    std::snprintf(line, sizeof line, "%.6f %s %d %d %d %.3f %.3f %d %d %d %d\n", r.stamp_s,
+                  std::string(slam::to_string(r.status)).c_str(), r.inliers, r.wheels.prior_given ? 1 : 0,
+                  r.wheels.compared ? 1 : 0, r.wheels.frame_distance_sq, r.wheels.window_distance_sq,
+                  r.wheels.disagree ? 1 : 0, r.wheels.vision_trusted ? 1 : 0, r.wheels.wheels_trusted ? 1 : 0,
+                  r.wheels.slip_event ? 1 : 0);
+    text += line;
+  }
+  return text;
 }
 
 void write_percentiles(JsonWriter& json, std::string_view key, const Percentiles& p) {
@@ -111,6 +157,32 @@ int run_replay(const ReplayArgs& args) {
               << describe_slam_config(config);
   }
 
+  // Wheel odometry from the recording's can.log, when it has one and the calibration describes
+  // the wheels: the prior of every frame.
+  std::optional<WheelPrior> wheels;
+  std::string wheels_off_reason;
+  if (args.no_wheels) {
+    wheels_off_reason = "--no-wheels";
+  } else if (recording.can_frames.empty()) {
+    wheels_off_reason = "no can.log";
+  } else if (!recording.calibration.wheels) {
+    wheels_off_reason = "the calibration has no wheels section";
+  } else {
+    const nav::WheelOdometryConfig wheel_config;
+    if (auto error = nav::validate(wheel_config, *recording.calibration.wheels); !error.empty()) {
+      std::cerr << "error: " << recording.calibration.source << ": " << error << "\n";
+      return kExitInput;
+    }
+    wheels.emplace(wheel_config, *recording.calibration.wheels, recording.calibration.rgb.T_base_cam);
+  }
+  if (!args.quiet) {
+    std::cout << "wheels: "
+              << (wheels ? std::to_string(recording.can_frames.size()) + " CAN frames from can.log as the motion prior"
+                         : "not used (" + wheels_off_reason + ")")
+              << "\n";
+  }
+  std::size_t next_can_frame = 0;
+
   slam::SlamLoop loop(config, recording.calibration);
   eval::Trajectory estimate;
   estimate.reserve(camera.frame_count());
@@ -119,6 +191,9 @@ int run_replay(const ReplayArgs& args) {
   std::array<std::vector<double>, slam::StageTimes::kCount> stage_ms;
   for (auto& stage : stage_ms) stage.reserve(camera.frame_count());
   int failed_frames = 0;
+  StatusCounts status_counts;
+  std::vector<FrameRecord> frame_records;
+  frame_records.reserve(camera.frame_count());
 
   g_stop_requested = false;
   std::signal(SIGINT, request_stop);
@@ -135,11 +210,26 @@ int run_replay(const ReplayArgs& args) {
     for (const auto& warning : camera.take_warnings()) std::cerr << "\nwarning: " << warning << "\n";
     if (status == hal::ReadStatus::kEndOfStream) break;
     if (status != hal::ReadStatus::kOk) continue;
+    const slam::MotionPrior* prior = nullptr;
+    if (wheels) {
+      // The wheel frames in stamp order up to the camera frame's stamp and the first one after
+      // it: the motion up to the stamp is known once the next wheel frame is in (at 100 Hz, at
+      // most 10 ms later; a live camera frame takes longer than that to arrive).
+      const std::int64_t stamp_ns = recording_stamp_ns(frame.stamp_s);
+      while (next_can_frame < recording.can_frames.size()) {
+        const hal::CanFrame& can_frame = recording.can_frames[next_can_frame++];
+        const nav::WheelFrameResult fed = wheels->update(can_frame);
+        if (can_frame.stamp_ns >= stamp_ns && fed != nav::WheelFrameResult::kNotWheelFrame) break;
+      }
+      prior = wheels->prior_for(stamp_ns);
+    }
     const auto start = std::chrono::steady_clock::now();
-    const slam::FrameResult result = loop.process(frame);
+    const slam::FrameResult result = loop.process(frame, prior);
     frame_ms.push_back(std::chrono::duration<double, std::milli>(std::chrono::steady_clock::now() - start).count());
     for (std::size_t i = 0; i < slam::StageTimes::kCount; ++i) stage_ms[i].push_back(result.times.ms[i]);
-    if (result.status == slam::FrameStatus::kFailed) ++failed_frames;
+    if (result.status == slam::FrameStatus::kFailed || result.status == slam::FrameStatus::kWheels) ++failed_frames;
+    status_counts.add(result);
+    frame_records.push_back({frame.stamp_s, result.status, result.inliers, result.wheels});
     estimate.push_back({frame.stamp_s, result.T_world_cam});
     progress.update(static_cast<unsigned>(estimate.size()));
   }
@@ -159,6 +249,7 @@ int run_replay(const ReplayArgs& args) {
   };
   report_error(eval::write_tum_trajectory(args.out / "trajectory.txt", estimate));
   report_error(hal::write_file_atomically(args.out / "map.ply", std::string_view(loop.map().to_ply())));
+  report_error(hal::write_file_atomically(args.out / "frames.csv", std::string_view(frames_csv(frame_records))));
 
   std::optional<eval::EvalResult> accuracy;
   std::optional<eval::Trajectory> ground_truth;
@@ -194,6 +285,27 @@ int run_replay(const ReplayArgs& args) {
   json.integer("failed_frames", failed_frames);
   json.integer("skipped_frames", counters.corrupt);
   json.integer("dropped_frames", counters.dropped);
+  json.begin_object("status_counts");
+  json.integer("TRACKING", status_counts.tracking);
+  json.integer("DEGRADED", status_counts.degraded);
+  json.integer("LOST", status_counts.lost);
+  json.end_object();
+  json.boolean("wheels_used", wheels.has_value());
+  if (wheels) {
+    const WheelPriorCounters& prior_counters = wheels->counters();
+    const nav::WheelOdometryStats& wheel_stats = wheels->odometry().stats();
+    json.integer("wheel_slip_events", loop.wheel_slip_events());
+    json.integer("wheel_prior_frames", static_cast<long long>(prior_counters.with_prior));
+    json.integer("wheel_prior_missing", static_cast<long long>(prior_counters.not_covered + prior_counters.discontinuous +
+                                                               prior_counters.wrong_order));
+    json.integer("wheel_frames_integrated", static_cast<long long>(wheel_stats.frames_integrated));
+    json.integer("wheel_frames_missing", static_cast<long long>(wheel_stats.frames_missing));
+    json.integer("wheel_vision_disagreements", status_counts.disagreements);
+    json.integer("wheel_overruled_frames", status_counts.wheels_trusted);
+  } else {
+    json.string("wheels_off_reason", wheels_off_reason);
+    json.null("wheel_slip_events");
+  }
   json.integer("keyframes", loop.keyframes());
   json.integer("map_points", static_cast<long long>(loop.map().size()));
   json.boolean("interrupted", interrupted);
@@ -225,6 +337,14 @@ int run_replay(const ReplayArgs& args) {
   const Percentiles timing = percentiles(frame_ms);
   std::printf("frames %zu  failed %d  skipped %u  median %.1f ms/frame\n", estimate.size(), failed_frames,
               counters.corrupt, timing.median);
+  std::printf("status TRACKING %d  DEGRADED %d  LOST %d", status_counts.tracking, status_counts.degraded,
+              status_counts.lost);
+  if (wheels) {
+    std::printf("  wheel slip events %d  wheel/vision disagreements %d\n", loop.wheel_slip_events(),
+                status_counts.disagreements);
+  } else {
+    std::printf("  (no wheels: %s)\n", wheels_off_reason.c_str());
+  }
   if (accuracy) {
     std::printf("ATE RMSE %.4f m", accuracy->ate.translation_m.rmse);
     if (accuracy->rpe) {

@@ -47,7 +47,7 @@ PoseBroadcaster::PoseBroadcaster(const PoseOutputConfig& config, hal::CanBus& bu
 void PoseBroadcaster::update(const PoseSample& sample) {
   latest_ = sample;
   last_frame_ns_ = clock_.now_ns();
-  consecutive_failures_ = sample.registered ? 0 : consecutive_failures_ + 1;
+  consecutive_failures_ = sample.registered || sample.wheels_only ? 0 : consecutive_failures_ + 1;
   ++frames_since_heartbeat_;
 }
 

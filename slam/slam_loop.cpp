@@ -1,10 +1,13 @@
 #include "rankslam/slam/slam_loop.hpp"
 
+#include <Eigen/Cholesky>
+#include <Eigen/LU>
 #include <opencv2/imgproc.hpp>
 
 #include <algorithm>
 #include <chrono>
 #include <cmath>
+#include <limits>
 #include <stdexcept>
 #include <string>
 
@@ -68,7 +71,57 @@ bool valid_image(const cv::Mat& image, int type, int width, int height) {
   return image.type() == type && image.cols == width && image.rows == height;
 }
 
+using Vector6d = Eigen::Matrix<double, 6, 1>;
+using Matrix6d = Eigen::Matrix<double, 6, 6>;
+
+// ξ = (rotation vector, translation) with `motion` = exp(ξ), to first order in the translation:
+// the residuals compared with the prior are small.
+Vector6d log_motion(const Eigen::Isometry3d& motion) {
+  const Eigen::AngleAxisd rotation(motion.rotation());
+  Vector6d xi;
+  xi.head<3>() = rotation.angle() * rotation.axis();
+  xi.tail<3>() = motion.translation();
+  return xi;
+}
+
+double mahalanobis_sq(const Vector6d& residual, const Matrix6d& covariance) {
+  const Eigen::LDLT<Matrix6d> factor(covariance);
+  if (factor.info() != Eigen::Success) return std::numeric_limits<double>::infinity();
+  return residual.dot(factor.solve(residual));
+}
+
 }  // namespace
+
+MotionPrior camera_motion_prior(double x_m, double y_m, double yaw_rad, const Eigen::Matrix3d& planar_covariance,
+                                const Eigen::Isometry3d& T_base_cam) {
+  Eigen::Isometry3d T_base_previous_base_current = Eigen::Isometry3d::Identity();
+  T_base_previous_base_current.linear() = Eigen::AngleAxisd(yaw_rad, Eigen::Vector3d::UnitZ()).toRotationMatrix();
+  T_base_previous_base_current.translation() = Eigen::Vector3d(x_m, y_m, 0.0);
+  const Eigen::Isometry3d T_cam_base = T_base_cam.inverse();
+  MotionPrior prior;
+  prior.T_previous_current = rigid(T_cam_base * T_base_previous_base_current * T_base_cam);
+
+  // A change (δx, δy, δyaw) of the planar motion D is, to first order, D' = exp(ξ_base)·D with
+  // ω = δyaw·z and v = (δx, δy, 0) − δyaw·z × t_D in the previous base frame; conjugating with
+  // T_cam_base carries ξ into the previous camera frame (the adjoint: ω_c = R ω, v_c = R v + t × R ω).
+  Eigen::Matrix<double, 6, 3> base_jacobian = Eigen::Matrix<double, 6, 3>::Zero();
+  base_jacobian(2, 2) = 1.0;
+  base_jacobian(3, 0) = 1.0;
+  base_jacobian(4, 1) = 1.0;
+  base_jacobian(3, 2) = y_m;
+  base_jacobian(4, 2) = -x_m;
+  const Eigen::Matrix3d R = T_cam_base.rotation();
+  Eigen::Matrix3d t_cross;
+  const Eigen::Vector3d t = T_cam_base.translation();
+  t_cross << 0.0, -t.z(), t.y(), t.z(), 0.0, -t.x(), -t.y(), t.x(), 0.0;
+  Matrix6d adjoint = Matrix6d::Zero();
+  adjoint.topLeftCorner<3, 3>() = R;
+  adjoint.bottomLeftCorner<3, 3>() = t_cross * R;
+  adjoint.bottomRightCorner<3, 3>() = R;
+  const Eigen::Matrix<double, 6, 3> jacobian = adjoint * base_jacobian;
+  prior.covariance = jacobian * planar_covariance * jacobian.transpose();
+  return prior;
+}
 
 SlamLoop::SlamLoop(const SlamConfig& config, const hal::Calibration& calibration)
     : config_(config),
@@ -80,6 +133,7 @@ SlamLoop::SlamLoop(const SlamConfig& config, const hal::Calibration& calibration
       infrared_filter_(camera_.width(), camera_.height()),
       icp_(icp_settings(config_), camera_),
       map_sampler_(static_cast<std::mt19937::result_type>(config.seed)) {
+  wheel_window_.resize(static_cast<std::size_t>(std::max(1, config_.wheel_gate_window_frames)));
   const auto capacity = static_cast<std::size_t>(config.orb_features) * 2;
   for (auto& tracked : frames_) {
     tracked.features.reserve(capacity);
@@ -198,8 +252,8 @@ MotionEstimate SlamLoop::register_frames(const PhotometricFeatures& target, cons
 }
 
 bool SlamLoop::accept(const MotionEstimate& estimate, const Eigen::Isometry3d& T_world_target,
-                      const Eigen::Isometry3d& T_world_previous, Eigen::Isometry3d& T_world_current,
-                      std::string_view& reason) const {
+                      const Eigen::Isometry3d& T_world_previous, const Eigen::Isometry3d& predicted_step,
+                      Eigen::Isometry3d& T_world_current, std::string_view& reason) const {
   std::string_view why;
   if (!estimate.ok) {
     why = estimate.failure_reason;
@@ -210,13 +264,13 @@ bool SlamLoop::accept(const MotionEstimate& estimate, const Eigen::Isometry3d& T
   } else {
     const Eigen::Isometry3d T_world_candidate = T_world_target * estimate.T_target_source;
     const Eigen::Isometry3d step = T_world_previous.inverse() * T_world_candidate;
-    const Eigen::Isometry3d deviation = last_motion_.inverse() * step;
+    const Eigen::Isometry3d deviation = predicted_step.inverse() * step;
     if (step.translation().norm() > config_.max_step_translation_m ||
         rotation_deg(step) > config_.max_step_rotation_deg) {
       why = "implausible frame-to-frame motion";
     } else if (deviation.translation().norm() > config_.max_deviation_translation_m ||
                rotation_deg(deviation) > config_.max_deviation_rotation_deg) {
-      why = "motion far from the constant-velocity prediction";
+      why = "motion far from the prediction";
     } else {
       T_world_current = T_world_candidate;
       return true;
@@ -244,9 +298,88 @@ void SlamLoop::refine_with_icp(const TrackedFrame& target, const TrackedFrame& c
   result.times.ms[kIcp] += elapsed_ms(stage_start);
 }
 
-FrameResult SlamLoop::process(const hal::RgbdFrame& frame) {
-  if (config_.mode == Mode::kGeometric) return process_geometric(frame);
+bool SlamLoop::check_against_wheels(const MotionPrior& prior, const Eigen::Isometry3d& T_world_previous, int inliers,
+                                    FrameResult& result) {
+  WheelCheck& check = result.wheels;
+  check.compared = true;
+  const Eigen::Isometry3d registered = T_world_previous.inverse() * result.T_world_cam;
+  const Vector6d residual = log_motion(registered * prior.T_previous_current.inverse());
+  const double sigma_rad = config_.wheel_vision_sigma_deg * M_PI / 180.0;
+  Vector6d vision_variance;
+  vision_variance << Eigen::Vector3d::Constant(sigma_rad * sigma_rad),
+      Eigen::Vector3d::Constant(config_.wheel_vision_sigma_m * config_.wheel_vision_sigma_m);
+  const Matrix6d vision_covariance = vision_variance.asDiagonal();
+  check.frame_distance_sq = mahalanobis_sq(residual, prior.covariance + vision_covariance);
+
+  // Over the window the residuals add up to (to first order) the registered motion over the
+  // window against the wheels' over it; both noises add up frame by frame. (Registrations
+  // against one key-frame would telescope, but on the simulated corridor loop new key-frames
+  // come every few frames and the summed residuals grew faster than one frame's error.)
+  WheelResidual& slot = wheel_window_[wheel_window_next_];
+  slot.residual = residual;
+  slot.covariance = prior.covariance + vision_covariance;
+  wheel_window_next_ = (wheel_window_next_ + 1) % wheel_window_.size();
+  wheel_window_size_ = std::min(wheel_window_size_ + 1, wheel_window_.size());
+  Vector6d window_residual = Vector6d::Zero();
+  Matrix6d window_covariance = Matrix6d::Zero();
+  for (std::size_t i = 0; i < wheel_window_size_; ++i) {
+    window_residual += wheel_window_[i].residual;
+    window_covariance += wheel_window_[i].covariance;
+  }
+  // Until the window is full its sum says no more than the frame alone.
+  check.window_distance_sq =
+      wheel_window_size_ == wheel_window_.size() ? mahalanobis_sq(window_residual, window_covariance) : 0.0;
+
+  check.disagree = check.frame_distance_sq > config_.wheel_gate_chi2 || check.window_distance_sq > config_.wheel_gate_chi2;
+  if (!check.disagree) {
+    disagree_in_a_row_ = 0;
+    // Both measure the same motion: combine them by their covariances (a Kalman update of the
+    // prior by the registration), exp(K·r)·prior with K = Σ_wheels (Σ_wheels + Σ_vision)⁻¹.
+    // Motion the wheels cannot see (across the floor plane) has no wheel variance and keeps the
+    // prior's value; a planar base cannot make it.
+    const Matrix6d gain = prior.covariance * (prior.covariance + vision_covariance).inverse();
+    const Vector6d correction = gain * residual;
+    Eigen::Isometry3d update = Eigen::Isometry3d::Identity();
+    const double angle = correction.head<3>().norm();
+    if (angle > 0.0) update.linear() = Eigen::AngleAxisd(angle, correction.head<3>() / angle).toRotationMatrix();
+    update.translation() = correction.tail<3>();
+    result.T_world_cam = T_world_previous * (update * prior.T_previous_current);
+    check.fused = true;
+    return true;
+  }
+  if (inliers >= config_.wheel_strong_inliers) {
+    // Enough inliers that the scene, not a chance alignment, fixed the motion. A single such
+    // frame is more often a registration error than slip (simulated corridor loop: the
+    // disagreeing registrations were off by 35 mm median, the wheels by 0.04 mm), so the wheels
+    // keep the pose until the disagreement has lasted wheel_slip_min_frames: then the wheels
+    // slipped (or the robot was moved) and vision is trusted for as long as it lasts.
+    check.disagree_in_a_row = ++disagree_in_a_row_;
+    if (disagree_in_a_row_ < config_.wheel_slip_min_frames) {
+      check.wheels_trusted = true;
+      return false;
+    }
+    check.vision_trusted = true;
+    if (disagree_in_a_row_ == config_.wheel_slip_min_frames) {
+      check.slip_event = true;
+      ++wheel_slip_events_;
+    }
+    return true;
+  }
+  if (check.frame_distance_sq <= config_.wheel_gate_chi2) {
+    // Only the window disagrees: slip the strong frames before saw; this frame itself agrees.
+    return true;
+  }
+  check.wheels_trusted = true;
+  check.disagree_in_a_row = disagree_in_a_row_;
+  return false;
+}
+
+FrameResult SlamLoop::process(const hal::RgbdFrame& frame) { return process(frame, nullptr); }
+
+FrameResult SlamLoop::process(const hal::RgbdFrame& frame, const MotionPrior* prior) {
+  if (config_.mode == Mode::kGeometric) return process_geometric(frame, prior);
   FrameResult result;
+  result.wheels.prior_given = prior != nullptr;
   auto stage_start = Clock::now();
   const ImageSource source = choose_source(frame);
   const cv::Mat* image = feature_image(frame, source);
@@ -268,7 +401,7 @@ FrameResult SlamLoop::process(const hal::RgbdFrame& frame) {
   const double frame_dt_s =
       previous_ >= 0 ? std::clamp(frame.stamp_s - previous_stamp_s_, 0.005, 0.5) : 1.0 / 30.0;
   previous_stamp_s_ = frame.stamp_s;
-  tracked.velocity = velocity_of(last_motion_, frame_dt_s);
+  tracked.velocity = velocity_of(predicted_motion(prior), frame_dt_s);
   result.features = static_cast<int>(tracked.features.size());
   result.times.ms[kFeatures] = elapsed_ms(stage_start);
   if (config_.icp_mode != IcpMode::kOff) {
@@ -287,11 +420,12 @@ FrameResult SlamLoop::process(const hal::RgbdFrame& frame) {
     result.status = FrameStatus::kFirstFrame;
     result.T_world_cam = Eigen::Isometry3d::Identity();
     new_reference = true;
-    finish_frame(frame, have_depth, Eigen::Isometry3d::Identity(), result);
+    finish_frame(frame, have_depth, Eigen::Isometry3d::Identity(), nullptr, result);
   } else {
     const TrackedFrame& previous = frames_[static_cast<std::size_t>(previous_)];
     const TrackedFrame& reference = frames_[static_cast<std::size_t>(reference_)];
-    const Eigen::Isometry3d T_world_predicted = previous.T_world_cam * last_motion_;
+    const Eigen::Isometry3d& predicted_step = predicted_motion(prior);
+    const Eigen::Isometry3d T_world_predicted = previous.T_world_cam * predicted_step;
     std::string_view reason;
     if (image == nullptr) reason = "no usable image";
     if (!have_depth) reason = "no usable depth";
@@ -301,7 +435,7 @@ FrameResult SlamLoop::process(const hal::RgbdFrame& frame) {
         const MotionEstimate estimate =
             register_frames(reference.features, reference.velocity, tracked.features, tracked.velocity, result,
                             reference.T_world_cam.inverse() * T_world_predicted);
-        if (accept(estimate, reference.T_world_cam, previous.T_world_cam, result.T_world_cam, reason)) {
+        if (accept(estimate, reference.T_world_cam, previous.T_world_cam, predicted_step, result.T_world_cam, reason)) {
           target = &reference;
           // Overlap relative to the inliers the reference had with the first frame registered
           // against it: that count is what full overlap looks like for this scene and image kind.
@@ -321,7 +455,7 @@ FrameResult SlamLoop::process(const hal::RgbdFrame& frame) {
         const MotionEstimate estimate =
             register_frames(reference.features, reference.velocity, bridge_, tracked.velocity, result,
                             reference.T_world_cam.inverse() * T_world_predicted);
-        if (accept(estimate, reference.T_world_cam, previous.T_world_cam, result.T_world_cam, reason)) {
+        if (accept(estimate, reference.T_world_cam, previous.T_world_cam, predicted_step, result.T_world_cam, reason)) {
           target = &reference;
         }
         new_reference = true;  // the following frames need a reference of the new kind
@@ -332,8 +466,9 @@ FrameResult SlamLoop::process(const hal::RgbdFrame& frame) {
       // 0.036 m): the previous frame is the fallback only.
       if (target == nullptr && previous_ != reference_ && previous.features.source == source) {
         const MotionEstimate estimate = register_frames(previous.features, previous.velocity, tracked.features,
-                                                        tracked.velocity, result, last_motion_);
-        if (accept(estimate, previous.T_world_cam, previous.T_world_cam, result.T_world_cam, reason)) {
+                                                        tracked.velocity, result, predicted_step);
+        if (accept(estimate, previous.T_world_cam, previous.T_world_cam, predicted_step, result.T_world_cam,
+                   reason)) {
           target = &previous;
           new_reference = true;
         }
@@ -341,13 +476,19 @@ FrameResult SlamLoop::process(const hal::RgbdFrame& frame) {
     }
     if (target != nullptr) {
       if (config_.icp_mode != IcpMode::kOff) refine_with_icp(*target, tracked, result);
+      if (prior != nullptr && !check_against_wheels(*prior, previous.T_world_cam, result.inliers, result)) {
+        target = nullptr;
+        reason = "registration disagrees with the wheels";
+      }
+    }
+    if (target != nullptr) {
       result.status = FrameStatus::kTracking;
     } else {
-      result.status = FrameStatus::kFailed;
+      result.status = prior != nullptr ? FrameStatus::kWheels : FrameStatus::kFailed;
       result.failure_reason = reason;
       new_reference = false;  // the reference stays: the next frame that sees it snaps back
     }
-    finish_frame(frame, have_depth, previous.T_world_cam, result);
+    finish_frame(frame, have_depth, previous.T_world_cam, prior, result);
   }
   tracked.T_world_cam = result.T_world_cam;
   if (new_reference) {
@@ -360,10 +501,22 @@ FrameResult SlamLoop::process(const hal::RgbdFrame& frame) {
 }
 
 void SlamLoop::finish_frame(const hal::RgbdFrame& frame, bool have_depth, const Eigen::Isometry3d& T_world_previous,
-                            FrameResult& result) {
+                            const MotionPrior* prior, FrameResult& result) {
+  if (!result.wheels.compared) {
+    // The window sums consecutive compared frames only.
+    wheel_window_size_ = 0;
+    wheel_window_next_ = 0;
+    disagree_in_a_row_ = 0;
+  }
   if (result.status == FrameStatus::kTracking) {
     result.T_world_cam = rigid(result.T_world_cam);
     last_motion_ = rigid(T_world_previous.inverse() * result.T_world_cam);
+    failed_in_a_row_ = 0;
+  } else if (result.status == FrameStatus::kWheels && prior != nullptr) {
+    // The wheels carry the pose; their motion is also the best constant-velocity model should
+    // the next frame come without a prior.
+    last_motion_ = prior->T_previous_current;
+    result.T_world_cam = rigid(T_world_previous * last_motion_);
     failed_in_a_row_ = 0;
   } else if (result.status == FrameStatus::kFailed) {
     // Constant-velocity extrapolation keeps the pose continuous through a short gap; a long gap
@@ -386,8 +539,9 @@ void SlamLoop::finish_frame(const hal::RgbdFrame& frame, bool have_depth, const 
   result.times.ms[kMapping] = elapsed_ms(stage_start);
 }
 
-FrameResult SlamLoop::process_geometric(const hal::RgbdFrame& frame) {
+FrameResult SlamLoop::process_geometric(const hal::RgbdFrame& frame, const MotionPrior* prior) {
   FrameResult result;
+  result.wheels.prior_given = prior != nullptr;
   auto stage_start = Clock::now();
   const bool have_depth = valid_image(frame.depth, CV_16UC1, camera_.width(), camera_.height());
   gray_valid_ = valid_image(frame.rgb, CV_8UC3, camera_.width(), camera_.height());  // map colour only
@@ -406,15 +560,20 @@ FrameResult SlamLoop::process_geometric(const hal::RgbdFrame& frame) {
   if (geometric_previous_ < 0) {
     result.status = FrameStatus::kFirstFrame;
     result.T_world_cam = Eigen::Isometry3d::Identity();
-    finish_frame(frame, have_depth, Eigen::Isometry3d::Identity(), result);
+    finish_frame(frame, have_depth, Eigen::Isometry3d::Identity(), nullptr, result);
   } else {
     std::string_view reason;
     if (!have_depth) reason = "no usable depth";
     else if (extracted != geometry::GeometryStatus::kOk) reason = geometry::to_string(extracted);
     bool tracked = false;
+    int descriptor_inliers = 0;
     if (reason.empty()) {
+      // The target is the last frame with features, which is older than the previous frame when
+      // frames without features came in between.
+      const Eigen::Isometry3d guess =
+          T_world_geometric_target_.inverse() * T_world_geometric_previous_ * predicted_motion(prior);
       const geometry::FrameRegistration registration = geometric_.register_frames(
-          geometric_features_[static_cast<std::size_t>(geometric_previous_)], features, last_motion_);
+          geometric_features_[static_cast<std::size_t>(geometric_previous_)], features, guess);
       const geometry::StageTimes& times = geometric_.last_times();
       result.times.ms[kMatching] = times.matching_ms;
       result.times.ms[kEstimation] = times.msse_ms;
@@ -423,19 +582,31 @@ FrameResult SlamLoop::process_geometric(const hal::RgbdFrame& frame) {
       // With the ICP stage the final inliers are its point-to-plane inliers; without it, MSSE's.
       result.inliers = registration.refined_from != geometry::RefinementStart::kNone ? registration.icp_inliers
                                                                                      : registration.inliers;
+      // How strongly the scene fixes the motion: the descriptor matches' MSSE inliers. ICP's
+      // point inliers count in the thousands even where it slides along a plane.
+      descriptor_inliers = registration.msse_ok ? registration.inliers : 0;
       MotionEstimate estimate;
       estimate.ok = registration.ok;
       estimate.T_target_source = registration.T_previous_current;
       estimate.inliers = result.inliers;
       estimate.failure_reason = geometry::to_string(registration.status);
-      tracked = accept(estimate, T_world_geometric_previous_, T_world_geometric_previous_, result.T_world_cam, reason);
+      tracked = accept(estimate, T_world_geometric_target_, T_world_geometric_previous_, predicted_motion(prior),
+                       result.T_world_cam, reason);
+      if (tracked && prior != nullptr &&
+          !check_against_wheels(*prior, T_world_geometric_previous_, descriptor_inliers, result)) {
+        tracked = false;
+        reason = "registration disagrees with the wheels";
+      }
     }
-    result.status = tracked ? FrameStatus::kTracking : FrameStatus::kFailed;
+    result.status = tracked ? FrameStatus::kTracking : (prior != nullptr ? FrameStatus::kWheels : FrameStatus::kFailed);
     if (!tracked) result.failure_reason = reason;
-    finish_frame(frame, have_depth, T_world_geometric_previous_, result);
+    finish_frame(frame, have_depth, T_world_geometric_previous_, prior, result);
   }
   // A frame without features cannot be the next frame's target; the last good one stays.
-  if (features.count > 0 || geometric_previous_ < 0) geometric_previous_ = current;
+  if (features.count > 0 || geometric_previous_ < 0) {
+    geometric_previous_ = current;
+    T_world_geometric_target_ = result.T_world_cam;
+  }
   T_world_geometric_previous_ = result.T_world_cam;
   return result;
 }

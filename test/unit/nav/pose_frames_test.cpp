@@ -337,6 +337,29 @@ TEST(PoseBroadcaster, FailedRegistrationsDegradeThenLose) {
   EXPECT_EQ(broadcaster.status(), PoseStatus::kTracking);
 }
 
+TEST(PoseBroadcaster, WheelsOnlyFramesStayDegradedForAsLongAsTheyLast) {
+  RecordingBus bus;
+  ManualClock clock;
+  PoseOutputConfig config;
+  config.lost_after_failed_frames = 3;
+  PoseBroadcaster broadcaster(config, bus, clock);
+  PoseSample sample;
+  broadcaster.update(sample);
+  sample.registered = false;
+  sample.wheels_only = true;
+  for (int i = 0; i < 50; ++i) {
+    broadcaster.update(sample);
+    ASSERT_EQ(broadcaster.status(), PoseStatus::kDegraded) << "frame " << i;
+  }
+  // Neither vision nor wheels: the failures count from here.
+  sample.wheels_only = false;
+  broadcaster.update(sample);
+  broadcaster.update(sample);
+  EXPECT_EQ(broadcaster.status(), PoseStatus::kDegraded);
+  broadcaster.update(sample);
+  EXPECT_EQ(broadcaster.status(), PoseStatus::kLost);
+}
+
 TEST(PoseBroadcaster, FullQueueIsCountedAndFlaggedInTheHeartbeat) {
   RecordingBus bus;
   ManualClock clock;

@@ -28,6 +28,9 @@ struct PoseSample {
   std::int64_t capture_ns = 0;          ///< capture time on the broadcaster's clock
   std::uint32_t frame_sequence = 0;     ///< camera frame number
   bool registered = true;               ///< false: registration failed, pose propagated
+  /// With registered false: the wheel odometry carries the pose. DEGRADED for as long as it
+  /// lasts; such frames do not count towards lost_after_failed_frames.
+  bool wheels_only = false;
   std::optional<std::uint8_t> inlier_percent;
 };
 

@@ -33,7 +33,7 @@ inline constexpr std::uint8_t kPoseCounterModulus = 16;
 enum class PoseStatus : std::uint8_t {
   kInitialising = 0,  ///< No camera frame processed yet; the pose is the origin.
   kTracking = 1,      ///< The latest frame was registered.
-  kDegraded = 2,      ///< Registration failed; the pose is propagated at constant velocity.
+  kDegraded = 2,      ///< Registration failed; the wheels carry the pose, or it is propagated at constant velocity.
   kLost = 3,          ///< Frames stopped arriving or failed for too long; do not use the pose.
 };
 

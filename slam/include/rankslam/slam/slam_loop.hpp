@@ -17,6 +17,7 @@
 #include <cstdint>
 #include <random>
 #include <string_view>
+#include <vector>
 
 namespace rankslam::slam {
 
@@ -24,7 +25,8 @@ namespace rankslam::slam {
 enum class FrameStatus : std::uint8_t {
   kFirstFrame,  ///< Defines the world frame.
   kTracking,    ///< Registered against the tracking key-frame or, failing that, the previous frame.
-  kFailed,      ///< Registration failed; the pose was propagated at constant velocity.
+  kFailed,      ///< Registration failed, no wheel prior: the pose was propagated at constant velocity.
+  kWheels,      ///< Registration failed or was overruled: the pose follows the wheel odometry prior.
 };
 
 [[nodiscard]] constexpr std::string_view to_string(FrameStatus status) {
@@ -32,9 +34,53 @@ enum class FrameStatus : std::uint8_t {
     case FrameStatus::kFirstFrame: return "first-frame";
     case FrameStatus::kTracking: return "tracking";
     case FrameStatus::kFailed: return "failed";
+    case FrameStatus::kWheels: return "wheels";
   }
   return "unknown";
 }
+
+/// The camera's motion since the previous frame as the wheel odometry measured it: the prediction
+/// for registration and the fallback when registration fails. See camera_motion_prior().
+struct MotionPrior {
+  /// The camera at this frame in the camera frame at the previous frame processed.
+  Eigen::Isometry3d T_previous_current = Eigen::Isometry3d::Identity();
+  /// Covariance of the motion: a small motion ξ = (rotation vector, translation) applied on the
+  /// left, T_previous_current = exp(ξ)·mean, expressed in the previous camera frame.
+  Eigen::Matrix<double, 6, 6> covariance = Eigen::Matrix<double, 6, 6>::Zero();
+};
+
+/// The camera motion prior from a planar base motion (x, y, yaw of the base at the current frame
+/// in the base frame at the previous one, with its 3×3 covariance in that frame) and the camera's
+/// mounting T_base_cam: T_cam_prev_cam_cur = T_cam_base · T_base_prev_base_cur · T_base_cam, the
+/// covariance propagated to first order.
+[[nodiscard]] MotionPrior camera_motion_prior(double x_m, double y_m, double yaw_rad,
+                                              const Eigen::Matrix3d& planar_covariance,
+                                              const Eigen::Isometry3d& T_base_cam);
+
+/// How vision and the wheel prior related on one frame (all false/0 without a prior).
+struct WheelCheck {
+  bool prior_given = false;
+  /// A registration was accepted and compared with the prior.
+  bool compared = false;
+  /// Squared Mahalanobis distance of the registered motion from the prior, this frame alone and
+  /// summed over the last wheel_gate_window_frames compared frames.
+  double frame_distance_sq = 0.0;
+  double window_distance_sq = 0.0;
+  /// Either distance beyond wheel_gate_chi2.
+  bool disagree = false;
+  /// They agreed: the pose is the covariance-weighted combination of the registration and the prior.
+  bool fused = false;
+  /// Vision won: a registration with wheel_strong_inliers or more disagreed for
+  /// wheel_slip_min_frames in a row; its pose was kept.
+  bool vision_trusted = false;
+  /// Wheels won: a registration disagreed and was replaced by the prior (status kWheels).
+  bool wheels_trusted = false;
+  /// Frames in a row that disagreed with vision trusted; wheel_slip_min_frames of them make
+  /// a slip event.
+  int disagree_in_a_row = 0;
+  /// This frame started a wheel-slip event (counted in SlamLoop::wheel_slip_events()).
+  bool slip_event = false;
+};
 
 /// Per-stage wall time of one frame, milliseconds.
 struct StageTimes {
@@ -60,6 +106,7 @@ struct FrameResult {
   bool new_reference = false;
   /// The frame was added to the map as a key-frame.
   bool keyframe = false;
+  WheelCheck wheels;
   StageTimes times;
 };
 
@@ -73,6 +120,15 @@ struct FrameResult {
 /// pose is propagated at constant velocity and the reference kept, so the next frame that sees it
 /// snaps back; after a failure the previous frame (at its propagated pose) bridges a lost view.
 ///
+/// Wheel prior: process(frame, &prior) predicts the frame with the wheel motion instead of the
+/// constant-velocity model, and when registration fails takes the prior as the pose (kWheels)
+/// instead of extrapolating. An accepted registration is compared with the prior (Mahalanobis
+/// distance with the wheel covariance plus a fixed per-frame vision noise, for the frame alone
+/// and over a short window): when they agree the frame's motion is their covariance-weighted
+/// combination; a registration that disagrees gives way to the wheels (kWheels) unless it is
+/// strong and the disagreement has lasted wheel_slip_min_frames: then the wheels are taken to
+/// slip, vision keeps the pose, and a wheel-slip event is counted.
+///
 /// Dark scenes: below `ir_switch_brightness` the features come from the pre-processed IR image.
 /// At the frame where the image kind changes, features of the old kind are extracted as well and
 /// registered against the reference, so the pose carries across the switch.
@@ -81,6 +137,12 @@ class SlamLoop {
   SlamLoop(const SlamConfig& config, const hal::Calibration& calibration);
 
   [[nodiscard]] FrameResult process(const hal::RgbdFrame& frame);
+  /// As process(frame), with the wheel motion since the previous frame; null: no prior.
+  [[nodiscard]] FrameResult process(const hal::RgbdFrame& frame, const MotionPrior* prior);
+
+  /// Wheel-slip events so far: disagreements between strong registrations and the wheels that
+  /// lasted wheel_slip_min_frames frames.
+  [[nodiscard]] int wheel_slip_events() const { return wheel_slip_events_; }
 
   [[nodiscard]] const PointMap& map() const { return map_; }
   [[nodiscard]] int keyframes() const { return keyframes_; }
@@ -112,17 +174,26 @@ class SlamLoop {
                                                FrameResult& result, const Eigen::Isometry3d& predicted);
   /// Checks an estimate of T_target_current; on success writes T_world_current, otherwise
   /// `reason` (when still empty).
+  /// `predicted_step` is the motion expected from the previous frame (prior or constant velocity).
   [[nodiscard]] bool accept(const MotionEstimate& estimate, const Eigen::Isometry3d& T_world_target,
-                            const Eigen::Isometry3d& T_world_previous, Eigen::Isometry3d& T_world_current,
-                            std::string_view& reason) const;
+                            const Eigen::Isometry3d& T_world_previous, const Eigen::Isometry3d& predicted_step,
+                            Eigen::Isometry3d& T_world_current, std::string_view& reason) const;
   void refine_with_icp(const TrackedFrame& target, const TrackedFrame& current, FrameResult& result);
   void add_keyframe_to_map(const hal::RgbdFrame& frame, const Eigen::Isometry3d& T_world_cam);
   /// Geometric mode: depth-only registration of each frame against the previous one.
-  [[nodiscard]] FrameResult process_geometric(const hal::RgbdFrame& frame);
-  /// The tail every mode shares: a failed frame extrapolates or holds the pose, a tracked one
-  /// updates the motion model; then key-frame and map.
+  [[nodiscard]] FrameResult process_geometric(const hal::RgbdFrame& frame, const MotionPrior* prior);
+  /// Motion predicted from the previous frame to this one: the prior's, else constant velocity.
+  [[nodiscard]] const Eigen::Isometry3d& predicted_motion(const MotionPrior* prior) const {
+    return prior != nullptr ? prior->T_previous_current : last_motion_;
+  }
+  /// With a prior: compares an accepted registration (result.T_world_cam) with it and decides
+  /// which source the frame keeps; false when the wheels overrule the registration.
+  [[nodiscard]] bool check_against_wheels(const MotionPrior& prior, const Eigen::Isometry3d& T_world_previous,
+                                          int inliers, FrameResult& result);
+  /// The tail every mode shares: a failed frame takes the prior, or extrapolates or holds the
+  /// pose; a tracked one updates the motion model; then key-frame and map.
   void finish_frame(const hal::RgbdFrame& frame, bool have_depth, const Eigen::Isometry3d& T_world_previous,
-                    FrameResult& result);
+                    const MotionPrior* prior, FrameResult& result);
 
   SlamConfig config_;
   DepthCameraModel camera_;
@@ -156,6 +227,9 @@ class SlamLoop {
   std::array<geometry::GeometricFeatures, 2> geometric_features_;
   int geometric_previous_ = -1;
   Eigen::Isometry3d T_world_geometric_previous_ = Eigen::Isometry3d::Identity();
+  /// Pose of the frame whose features are geometric_previous_ (older than the previous frame
+  /// when frames without features came in between).
+  Eigen::Isometry3d T_world_geometric_target_ = Eigen::Isometry3d::Identity();
 
   std::vector<FeatureMatch> matches_;
   std::vector<Eigen::Vector3f> source_points_;
@@ -166,6 +240,18 @@ class SlamLoop {
   Eigen::Isometry3d last_motion_ = Eigen::Isometry3d::Identity();
   /// Failed frames since the last registered one.
   int failed_in_a_row_ = 0;
+
+  /// Last compared frames' residuals from the prior (ring of wheel_gate_window_frames), for the
+  /// window test: slip adds up frame after frame, noise only as its square root.
+  struct WheelResidual {
+    Eigen::Matrix<double, 6, 1> residual = Eigen::Matrix<double, 6, 1>::Zero();
+    Eigen::Matrix<double, 6, 6> covariance = Eigen::Matrix<double, 6, 6>::Zero();
+  };
+  std::vector<WheelResidual> wheel_window_;
+  std::size_t wheel_window_next_ = 0;
+  std::size_t wheel_window_size_ = 0;
+  int disagree_in_a_row_ = 0;
+  int wheel_slip_events_ = 0;
   Eigen::Isometry3d T_world_last_keyframe_ = Eigen::Isometry3d::Identity();
   int keyframes_ = 0;
   std::mt19937 map_sampler_;

@@ -1,0 +1,228 @@
+// The SLAM loop with a wheel-odometry prior: the prior as prediction and fallback, and the
+// comparison of registrations with it (slip overruled by strong vision, weak vision overruled by
+// the wheels).
+#include "rankslam/slam/slam_loop.hpp"
+#include "wall_sequence.hpp"
+
+#include <gtest/gtest.h>
+
+#include <cmath>
+
+namespace rankslam::slam {
+namespace {
+
+// The camera 0.2 m ahead of the base origin, 0.5 m up, looking forward along the base's x axis:
+// camera x = −base y, camera y = −base z, camera z = base x.
+Eigen::Isometry3d camera_on_base() {
+  Eigen::Isometry3d T_base_cam = Eigen::Isometry3d::Identity();
+  T_base_cam.linear() << 0.0, 0.0, 1.0, -1.0, 0.0, 0.0, 0.0, -1.0, 0.0;
+  T_base_cam.translation() = Eigen::Vector3d(0.2, 0.0, 0.5);
+  return T_base_cam;
+}
+
+// Wheel noise over one frame: 1 mm in x and y, 0.26 deg in yaw.
+Eigen::Matrix3d frame_covariance() { return Eigen::Vector3d(1e-6, 1e-6, 2e-5).asDiagonal(); }
+
+// The wall sequence moves the camera along its x axis, which is the base's −y: a base that
+// slides sideways (the prior does not need a drivable motion).
+MotionPrior sideways_prior(double camera_right_m, double yaw_rad = 0.0) {
+  return camera_motion_prior(0.0, -camera_right_m, yaw_rad, frame_covariance(), camera_on_base());
+}
+
+Eigen::Matrix<double, 6, 1> log_motion(const Eigen::Isometry3d& motion) {
+  const Eigen::AngleAxisd rotation(motion.rotation());
+  Eigen::Matrix<double, 6, 1> xi;
+  xi.head<3>() = rotation.angle() * rotation.axis();
+  xi.tail<3>() = motion.translation();
+  return xi;
+}
+
+TEST(CameraMotionPrior, IsTheBaseMotionSeenFromTheCameraWithItsCovariancePropagated) {
+  Eigen::Isometry3d T_base_cam = Eigen::Isometry3d::Identity();
+  T_base_cam.linear() = (Eigen::AngleAxisd(-1.4, Eigen::Vector3d::UnitZ()) * Eigen::AngleAxisd(-1.7, Eigen::Vector3d::UnitX()))
+                            .toRotationMatrix();
+  T_base_cam.translation() = Eigen::Vector3d(0.15, -0.05, 0.45);
+  const double x = 0.02;
+  const double y = 0.004;
+  const double yaw = 0.03;
+  Eigen::Matrix3d covariance;
+  covariance << 4e-6, 1e-6, 2e-6, 1e-6, 3e-6, -1e-6, 2e-6, -1e-6, 9e-6;
+  const MotionPrior prior = camera_motion_prior(x, y, yaw, covariance, T_base_cam);
+
+  const auto base_motion = [](double bx, double by, double byaw) {
+    Eigen::Isometry3d D = Eigen::Isometry3d::Identity();
+    D.linear() = Eigen::AngleAxisd(byaw, Eigen::Vector3d::UnitZ()).toRotationMatrix();
+    D.translation() = Eigen::Vector3d(bx, by, 0.0);
+    return D;
+  };
+  const Eigen::Isometry3d expected = T_base_cam.inverse() * base_motion(x, y, yaw) * T_base_cam;
+  EXPECT_LT((prior.T_previous_current.matrix() - expected.matrix()).cwiseAbs().maxCoeff(), 1e-12);
+
+  // Jacobian of ξ (camera motion = exp(ξ)·mean) with respect to (x, y, yaw), by central
+  // differences, against the propagated covariance.
+  Eigen::Matrix<double, 6, 3> jacobian;
+  const double h = 1e-6;
+  for (int i = 0; i < 3; ++i) {
+    Eigen::Vector3d plus(x, y, yaw);
+    Eigen::Vector3d minus(x, y, yaw);
+    plus[i] += h;
+    minus[i] -= h;
+    const Eigen::Isometry3d C_plus = T_base_cam.inverse() * base_motion(plus[0], plus[1], plus[2]) * T_base_cam;
+    const Eigen::Isometry3d C_minus = T_base_cam.inverse() * base_motion(minus[0], minus[1], minus[2]) * T_base_cam;
+    jacobian.col(i) = (log_motion(C_plus * expected.inverse()) - log_motion(C_minus * expected.inverse())) / (2 * h);
+  }
+  const Eigen::Matrix<double, 6, 6> numeric = jacobian * covariance * jacobian.transpose();
+  EXPECT_LT((prior.covariance - numeric).cwiseAbs().maxCoeff(), 1e-10) << prior.covariance << "\n\n" << numeric;
+  // A planar motion leaves the camera's motion certain across the floor's normal.
+  const Eigen::Vector3d floor_normal_cam = T_base_cam.rotation().transpose() * Eigen::Vector3d::UnitZ();
+  EXPECT_NEAR(floor_normal_cam.dot(prior.covariance.bottomRightCorner<3, 3>() * floor_normal_cam), 0.0, 1e-15);
+}
+
+class SlamLoopWheels : public ::testing::TestWithParam<Mode> {
+ protected:
+  SlamConfig config() const {
+    SlamConfig config;
+    config.mode = GetParam();
+    return config;
+  }
+  WallSequence wall_;
+  const double speed_m_ = WallSequence::metres(4);
+};
+
+TEST_P(SlamLoopWheels, AgreeingWheelsPredictAndVisionKeepsThePose) {
+  SlamLoop loop(config(), pinhole());
+  FrameResult result;
+  const MotionPrior prior = sideways_prior(speed_m_);
+  for (int i = 0; i <= 20; ++i) {
+    result = loop.process(wall_.frame(4 * i, static_cast<std::uint32_t>(i)), &prior);
+    EXPECT_TRUE(result.wheels.prior_given);
+    if (i == 0) continue;
+    ASSERT_EQ(result.status, FrameStatus::kTracking) << "frame " << i << ": " << result.failure_reason;
+    EXPECT_TRUE(result.wheels.compared);
+    EXPECT_FALSE(result.wheels.disagree) << "frame " << i << ": " << result.wheels.frame_distance_sq << " / "
+                                         << result.wheels.window_distance_sq;
+  }
+  EXPECT_NEAR(result.T_world_cam.translation().x(), WallSequence::metres(80), 0.01);
+  EXPECT_EQ(loop.wheel_slip_events(), 0);
+}
+
+TEST_P(SlamLoopWheels, BlankFramesFollowTheWheelsForAsLongAsTheyLast) {
+  SlamConfig slam_config = config();
+  slam_config.max_extrapolated_frames = 5;  // without wheels the pose would hold after 5 frames
+  SlamLoop loop(slam_config, pinhole());
+  const MotionPrior prior = sideways_prior(speed_m_);
+  FrameResult result;
+  for (int i = 0; i < 5; ++i) result = loop.process(wall_.frame(4 * i, static_cast<std::uint32_t>(i)), &prior);
+  ASSERT_EQ(result.status, FrameStatus::kTracking);
+  const double x_before = result.T_world_cam.translation().x();
+
+  hal::RgbdFrame blank = wall_.frame(0, 0);
+  blank.rgb.setTo(cv::Scalar::all(0));
+  for (int i = 5; i < 45; ++i) {
+    blank.sequence = static_cast<std::uint32_t>(i);
+    blank.stamp_s = i / 30.0;
+    result = loop.process(blank, &prior);
+    ASSERT_EQ(result.status, FrameStatus::kWheels) << "frame " << i;
+    EXPECT_FALSE(result.failure_reason.empty());
+    EXPECT_FALSE(result.wheels.compared);
+    EXPECT_NEAR(result.T_world_cam.translation().x(), x_before + (i - 4) * speed_m_, 1e-6) << "frame " << i;
+  }
+  // The texture again: the reference is still there and tracking resumes at the true pose.
+  result = loop.process(wall_.frame(4 * 45, 45), &prior);
+  EXPECT_EQ(result.status, FrameStatus::kTracking) << result.failure_reason;
+  EXPECT_NEAR(result.T_world_cam.translation().x(), WallSequence::metres(4 * 45), 0.01);
+}
+
+TEST_P(SlamLoopWheels, StrongVisionOverrulesSlippingWheelsAndCountsOneEventPerSlip) {
+  SlamConfig slam_config = config();
+  slam_config.wheel_strong_inliers = slam_config.min_inliers;  // every accepted registration is strong
+  // Noise-free synthetic images register far better than a real scene.
+  slam_config.wheel_vision_sigma_m = 0.002;
+  slam_config.wheel_vision_sigma_deg = 0.1;
+  SlamLoop loop(slam_config, pinhole());
+  const MotionPrior good = sideways_prior(speed_m_);
+  // One wheel over-counting: 0.6 deg of yaw per frame that the camera never turned.
+  const MotionPrior slipping = sideways_prior(speed_m_, 0.6 * M_PI / 180.0);
+  FrameResult result;
+  int frame = 0;
+  const auto drive = [&](const MotionPrior& prior, int frames, int& disagreeing) {
+    disagreeing = 0;
+    for (int k = 0; k < frames; ++k, ++frame) {
+      result = loop.process(wall_.frame(4 * frame, static_cast<std::uint32_t>(frame)), &prior);
+      if (frame == 0) continue;
+      if (result.wheels.disagree) {
+        ++disagreeing;
+        // The first frames of a disagreement keep the wheels; from wheel_slip_min_frames on, vision.
+        const bool slip_confirmed = result.wheels.disagree_in_a_row >= slam_config.wheel_slip_min_frames;
+        EXPECT_EQ(result.wheels.vision_trusted, slip_confirmed) << "frame " << frame;
+        EXPECT_EQ(result.status, slip_confirmed ? FrameStatus::kTracking : FrameStatus::kWheels) << "frame " << frame;
+      } else {
+        ASSERT_EQ(result.status, FrameStatus::kTracking) << "frame " << frame << ": " << result.failure_reason;
+      }
+    }
+  };
+  int disagreeing = 0;
+  // The texture lasts 50 frames of 4 px.
+  drive(good, 8, disagreeing);
+  EXPECT_EQ(disagreeing, 0);
+  drive(slipping, 12, disagreeing);
+  EXPECT_GE(disagreeing, 4);
+  EXPECT_EQ(loop.wheel_slip_events(), 1);
+  drive(good, 12, disagreeing);
+  EXPECT_EQ(loop.wheel_slip_events(), 1);
+  EXPECT_FALSE(result.wheels.disagree) << "the disagreement outlasts the slip";
+  drive(slipping, 12, disagreeing);
+  EXPECT_EQ(loop.wheel_slip_events(), 2);
+  // Vision kept the pose on the wall's true path: of the wheels' yaw only the frames before each
+  // slip was confirmed remain (the next registrations against the reference take it back out).
+  EXPECT_NEAR(result.T_world_cam.translation().x(), WallSequence::metres(4 * (frame - 1)), 0.01);
+  EXPECT_LT(Eigen::AngleAxisd(result.T_world_cam.rotation()).angle(), 0.01);
+}
+
+TEST_P(SlamLoopWheels, WeakVisionThatDisagreesGivesWayToTheWheels) {
+  SlamConfig slam_config = config();
+  slam_config.wheel_strong_inliers = 10000;  // no registration is strong enough to overrule them
+  SlamLoop loop(slam_config, pinhole());
+  const MotionPrior good = sideways_prior(speed_m_);
+  FrameResult result;
+  for (int i = 0; i < 5; ++i) result = loop.process(wall_.frame(4 * i, static_cast<std::uint32_t>(i)), &good);
+  ASSERT_EQ(result.status, FrameStatus::kTracking);
+  const Eigen::Isometry3d T_world_previous = result.T_world_cam;
+  // The wheels say 8 cm more than the view shows (8 sigma of the vision noise).
+  const MotionPrior far = sideways_prior(speed_m_ + 0.08);
+  result = loop.process(wall_.frame(20, 5), &far);
+  EXPECT_EQ(result.status, FrameStatus::kWheels) << result.failure_reason;
+  EXPECT_TRUE(result.wheels.compared);
+  EXPECT_TRUE(result.wheels.disagree);
+  EXPECT_TRUE(result.wheels.wheels_trusted);
+  EXPECT_GT(result.wheels.frame_distance_sq, slam_config.wheel_gate_chi2);
+  EXPECT_EQ(result.failure_reason, "registration disagrees with the wheels");
+  const Eigen::Isometry3d expected = T_world_previous * far.T_previous_current;
+  EXPECT_LT((result.T_world_cam.translation() - expected.translation()).norm(), 1e-6);
+  EXPECT_EQ(loop.wheel_slip_events(), 0);
+}
+
+INSTANTIATE_TEST_SUITE_P(Modes, SlamLoopWheels, ::testing::Values(Mode::kBaseline, Mode::kPhotometric),
+                         [](const auto& param_info) { return std::string(to_string(param_info.param)); });
+
+TEST(SlamLoopWheelsGeometric, FramesWithoutGeometryFollowTheWheels) {
+  SlamConfig config;
+  config.mode = Mode::kGeometric;
+  SlamLoop loop(config, pinhole());
+  WallSequence wall;
+  const MotionPrior prior = sideways_prior(WallSequence::metres(4));
+  FrameResult result = loop.process(wall.frame(0, 0), &prior);
+  ASSERT_EQ(result.status, FrameStatus::kFirstFrame);
+  // A flat wall gives the depth-only front-end nothing to register: every frame is the wheels'.
+  for (int i = 1; i < 20; ++i) {
+    result = loop.process(wall.frame(4 * i, static_cast<std::uint32_t>(i)), &prior);
+    ASSERT_EQ(result.status, FrameStatus::kWheels) << "frame " << i;
+  }
+  EXPECT_NEAR(result.T_world_cam.translation().x(), 19 * WallSequence::metres(4), 1e-6);
+  // Without the prior the same frames fail.
+  result = loop.process(wall.frame(80, 20));
+  EXPECT_EQ(result.status, FrameStatus::kFailed);
+}
+
+}  // namespace
+}  // namespace rankslam::slam
