@@ -1,5 +1,7 @@
+#include <limits>
 #include <set>
 #include <string>
+#include <type_traits>
 
 #include <gtest/gtest.h>
 
@@ -35,16 +37,23 @@ TEST(GeometryConfig, ThesisDefaults) {
 }
 
 TEST(GeometryConfig, ValidateNamesEachOutOfRangeField) {
-  // Every numeric field pushed past its maximum is reported by its own name.
+  // Every numeric field pushed past its maximum (below its minimum where the maximum is the
+  // type's largest value) is reported by its own name.
   GeometryConfig probe;
   std::vector<std::string> names;
   probe.visit_parameters([&](std::string_view name, auto&, auto, auto, std::string_view,
                              std::string_view) { names.emplace_back(name); });
   for (const std::string& target : names) {
     GeometryConfig config;
-    config.visit_parameters([&](std::string_view name, auto& field, auto /*min*/, auto max,
+    config.visit_parameters([&](std::string_view name, auto& field, auto min, auto max,
                                 std::string_view, std::string_view) {
-      if (name == target) field = static_cast<std::remove_reference_t<decltype(field)>>(max + 1);
+      if (name != target) return;
+      using Field = std::remove_reference_t<decltype(field)>;
+      if constexpr (std::is_integral_v<Field>) {
+        field = max < std::numeric_limits<Field>::max() ? static_cast<Field>(max + 1) : static_cast<Field>(min - 1);
+      } else {
+        field = static_cast<Field>(max + 1);
+      }
     });
     EXPECT_EQ(config.validate(), target);
   }
