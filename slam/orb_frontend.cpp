@@ -75,8 +75,9 @@ constexpr std::uint32_t kNone = std::numeric_limits<std::uint32_t>::max();
 
 // The whole source × target distance matrix in one pass: row minima give source→target, the
 // column minima kept on the way give target→source. x86-64's baseline has no POPCNT
-// instruction, so a POPCNT clone is chosen at load time where the CPU has it (never
-// -march=native: the binary must run on any x86-64 and arm64, whose baseline has a popcount).
+// instruction, so a POPCNT clone is chosen at load time where the CPU has it. The build itself
+// never targets the build machine's CPU: the binary must run on any x86-64, and on arm64, whose
+// baseline has a popcount.
 #if defined(__x86_64__) && defined(__GNUC__)
 __attribute__((target_clones("popcnt", "default")))
 #endif
