@@ -68,7 +68,8 @@ inline constexpr slam::Mode kDefaultMode = slam::Mode::kPhotometric;
 
 /// Whether this build implements `mode`.
 [[nodiscard]] inline bool mode_implemented(slam::Mode mode) {
-  return mode == slam::Mode::kBaseline || mode == slam::Mode::kPhotometric || mode == slam::Mode::kGeometric;
+  return mode == slam::Mode::kBaseline || mode == slam::Mode::kPhotometric || mode == slam::Mode::kGeometric ||
+         mode == slam::Mode::kFused;
 }
 
 /// The scene `rankslam replay` simulates when given no recording.

@@ -69,6 +69,11 @@ struct FrameRecord {
   double stamp_s = 0.0;
   slam::FrameStatus status = slam::FrameStatus::kFirstFrame;
   int inliers = 0;
+  int photometric_matches = 0;
+  int photometric_inliers = 0;
+  int geometric_matches = 0;
+  int geometric_inliers = 0;
+  double photometric_weight = 0.0;
   slam::WheelCheck wheels;
 };
 
@@ -76,14 +81,16 @@ struct FrameRecord {
 std::string frames_csv(const std::vector<FrameRecord>& records) {
   std::string text =
       "# stamp status inliers prior compared frame_distance_sq window_distance_sq disagree vision_trusted "
-      "wheels_trusted slip_event\n";
+      "wheels_trusted slip_event photometric_matches photometric_inliers geometric_matches geometric_inliers "
+      "photometric_weight\n";
   char line[256];
   for (const FrameRecord& r : records) {
-    std::snprintf(line, sizeof line, "%.6f %s %d %d %d %.3f %.3f %d %d %d %d\n", r.stamp_s,
+    std::snprintf(line, sizeof line, "%.6f %s %d %d %d %.3f %.3f %d %d %d %d %d %d %d %d %.3f\n", r.stamp_s,
                   std::string(slam::to_string(r.status)).c_str(), r.inliers, r.wheels.prior_given ? 1 : 0,
                   r.wheels.compared ? 1 : 0, r.wheels.frame_distance_sq, r.wheels.window_distance_sq,
                   r.wheels.disagree ? 1 : 0, r.wheels.vision_trusted ? 1 : 0, r.wheels.wheels_trusted ? 1 : 0,
-                  r.wheels.slip_event ? 1 : 0);
+                  r.wheels.slip_event ? 1 : 0, r.photometric_matches, r.photometric_inliers, r.geometric_matches,
+                  r.geometric_inliers, r.photometric_weight);
     text += line;
   }
   return text;
@@ -229,7 +236,9 @@ int run_replay(const ReplayArgs& args) {
     for (std::size_t i = 0; i < slam::StageTimes::kCount; ++i) stage_ms[i].push_back(result.times.ms[i]);
     if (result.status == slam::FrameStatus::kFailed || result.status == slam::FrameStatus::kWheels) ++failed_frames;
     status_counts.add(result);
-    frame_records.push_back({frame.stamp_s, result.status, result.inliers, result.wheels});
+    frame_records.push_back({frame.stamp_s, result.status, result.inliers, result.photometric_matches,
+                             result.photometric_inliers, result.geometric_matches, result.geometric_inliers,
+                             result.photometric_weight, result.wheels});
     estimate.push_back({frame.stamp_s, result.T_world_cam});
     progress.update(static_cast<unsigned>(estimate.size()));
   }

@@ -60,7 +60,8 @@ MotionEstimator::~MotionEstimator() = default;
 
 MotionEstimate MotionEstimator::estimate(std::span<const Eigen::Vector3f> source,
                                          std::span<const Eigen::Vector3f> target, std::span<const double> sigma_m,
-                                         const Eigen::Isometry3d* T_target_source_predicted) {
+                                         const Eigen::Isometry3d* T_target_source_predicted,
+                                         std::span<const double> weights) {
   Impl& impl = *impl_;
   MotionEstimate estimate;
   const auto n = static_cast<int>(std::min(source.size(), target.size()));
@@ -72,11 +73,16 @@ MotionEstimate MotionEstimator::estimate(std::span<const Eigen::Vector3f> source
     estimate.failure_reason = "noise scales do not match the correspondences";
     return estimate;
   }
+  if (!weights.empty() && static_cast<int>(weights.size()) != n) {
+    estimate.failure_reason = "weights do not match the correspondences";
+    return estimate;
+  }
   for (int i = 0; i < n; ++i) {
     impl.source.col(i) = source[static_cast<std::size_t>(i)].cast<double>();
     impl.target.col(i) = target[static_cast<std::size_t>(i)].cast<double>();
   }
-  if (impl.model.set_correspondences(impl.source.leftCols(n), impl.target.leftCols(n)) != robust::RobustStatus::kOk) {
+  if (impl.model.set_correspondences(impl.source.leftCols(n), impl.target.leftCols(n), weights) !=
+      robust::RobustStatus::kOk) {
     estimate.failure_reason = "invalid correspondences";
     return estimate;
   }
@@ -114,7 +120,8 @@ MotionEstimate MotionEstimator::estimate(std::span<const Eigen::Vector3f> source
     const int first_inliers = result.inlier_count;
     for (int i = 0; i < n; ++i) {
       const double sigma = sigma_m[static_cast<std::size_t>(i)];
-      impl.refit_weights[static_cast<std::size_t>(i)] = 1.0 / (sigma * sigma);
+      const double kind_weight = weights.empty() ? 1.0 : weights[static_cast<std::size_t>(i)];
+      impl.refit_weights[static_cast<std::size_t>(i)] = kind_weight / (sigma * sigma);
     }
     if (impl.model.set_correspondences(
             impl.source.leftCols(n), impl.target.leftCols(n),

@@ -128,7 +128,8 @@ SlamLoop::SlamLoop(const SlamConfig& config, const hal::Calibration& calibration
       camera_(calibration.rgb, calibration.depth_scale),
       orb_(config_, camera_),
       infrared_orb_(config_, camera_, config_.ir_orb_fast_threshold),
-      estimator_(config_, static_cast<std::size_t>(config.orb_features) * 2),
+      estimator_(config_, static_cast<std::size_t>(config.orb_features) * 2 +
+                              static_cast<std::size_t>(geometry::FrontendCapacities{}.max_keypoints)),
       map_(config.map_voxel_m, static_cast<std::size_t>(config.map_max_points)),
       infrared_filter_(camera_.width(), camera_.height()),
       icp_(icp_settings(config_), camera_),
@@ -144,16 +145,25 @@ SlamLoop::SlamLoop(const SlamConfig& config, const hal::Calibration& calibration
   }
   bridge_.reserve(capacity);
   matches_.reserve(capacity);
-  source_points_.reserve(capacity);
-  target_points_.reserve(capacity);
-  correspondence_sigma_m_.reserve(capacity);
+  const std::size_t correspondence_capacity =
+      capacity + static_cast<std::size_t>(geometry::FrontendCapacities{}.max_keypoints);
+  source_points_.reserve(correspondence_capacity);
+  target_points_.reserve(correspondence_capacity);
+  correspondence_sigma_m_.reserve(correspondence_capacity);
+  kind_weights_.reserve(correspondence_capacity);
   gray_.create(camera_.height(), camera_.width(), CV_8UC1);
   infrared_.create(camera_.height(), camera_.width(), CV_8UC1);
-  if (config_.mode == Mode::kGeometric) {
+  if (config_.mode == Mode::kGeometric || config_.mode == Mode::kFused) {
     if (const std::string error = geometric_.configure(camera_, config_.geometry); !error.empty()) {
       throw std::invalid_argument(error);
     }
+  }
+  if (config_.mode == Mode::kGeometric) {
     for (auto& features : geometric_features_) features = geometric_.make_features();
+  }
+  if (config_.mode == Mode::kFused) {
+    for (auto& tracked : frames_) tracked.geometric = geometric_.make_features();
+    geometric_matches_ = geometric_.make_correspondences();
   }
 }
 
@@ -185,7 +195,9 @@ const cv::Mat* SlamLoop::feature_image(const hal::RgbdFrame& frame, ImageSource 
 
 MotionEstimate SlamLoop::register_frames(const PhotometricFeatures& target, const Velocity& target_velocity,
                                          const PhotometricFeatures& current, const Velocity& current_velocity,
-                                         FrameResult& result, const Eigen::Isometry3d& predicted) {
+                                         FrameResult& result, const Eigen::Isometry3d& predicted,
+                                         const geometry::GeometricFeatures* target_geometric,
+                                         const geometry::GeometricFeatures* current_geometric) {
   auto stage_start = Clock::now();
   matcher_.match(target.descriptors, current.descriptors, config_.max_hamming_distance, matches_);
   const double readout_s = config_.rolling_shutter_readout_ms * 1e-3;
@@ -241,6 +253,9 @@ MotionEstimate SlamLoop::register_frames(const PhotometricFeatures& target, cons
   }
   result.matches = static_cast<int>(source_points_.size());
   result.times.ms[kMatching] += elapsed_ms(stage_start);
+  if (target_geometric != nullptr && current_geometric != nullptr) {
+    return fused_estimate(*target_geometric, *current_geometric, result, predicted);
+  }
 
   stage_start = Clock::now();
   // Per-correspondence noise (ranking and refit weights): fr1_rpy_head ATE over seeds 1-6, mean
@@ -249,6 +264,93 @@ MotionEstimate SlamLoop::register_frames(const PhotometricFeatures& target, cons
   result.inliers = estimate.inliers;
   result.times.ms[kEstimation] += elapsed_ms(stage_start);
   return estimate;
+}
+
+MotionEstimate SlamLoop::fused_estimate(const geometry::GeometricFeatures& target_geometric,
+                                        const geometry::GeometricFeatures& current_geometric, FrameResult& result,
+                                        const Eigen::Isometry3d& predicted) {
+  auto stage_start = Clock::now();
+  const auto photometric_count = static_cast<int>(source_points_.size());
+  int geometric_count = 0;
+  if (geometric_.correspondences(target_geometric, current_geometric, geometric_matches_) ==
+      geometry::GeometryStatus::kOk) {
+    geometric_count = geometric_matches_.count;
+  }
+  result.times.ms[kMatching] += elapsed_ms(stage_start);
+
+  stage_start = Clock::now();
+  // 1. Each kind alone: its inlier ratio says how well it fits this scene.
+  constexpr int kMinimalSample = 3;
+  MotionEstimate photometric;
+  if (photometric_count > kMinimalSample) {
+    photometric = estimator_.estimate(source_points_, target_points_, correspondence_sigma_m_, &predicted);
+  }
+  const auto photometric_end = static_cast<std::size_t>(photometric_count);
+  // A geometric keypoint is a voxel centroid: where the leaf's cell boundaries fall moves it by
+  // up to a leaf between frames, far more than the depth noise of its points.
+  const double quantisation = config_.fused_geometric_leaf_sigma;
+  const double target_leaf = target_geometric.voxel_leaf_m;
+  const double current_leaf = current_geometric.voxel_leaf_m;
+  const double quantisation_sq =
+      quantisation * quantisation * (target_leaf * target_leaf + current_leaf * current_leaf);
+  for (int i = 0; i < geometric_count; ++i) {
+    source_points_.push_back(geometric_matches_.current.col(i).cast<float>());
+    target_points_.push_back(geometric_matches_.previous.col(i).cast<float>());
+    const double sigma = geometric_matches_.sigma_m[static_cast<std::size_t>(i)];
+    correspondence_sigma_m_.push_back(std::sqrt(sigma * sigma + quantisation_sq));
+  }
+  const std::span<const Eigen::Vector3f> geometric_source(source_points_.data() + photometric_end,
+                                                          static_cast<std::size_t>(geometric_count));
+  const std::span<const Eigen::Vector3f> geometric_target(target_points_.data() + photometric_end,
+                                                          static_cast<std::size_t>(geometric_count));
+  const std::span<const double> geometric_sigma(correspondence_sigma_m_.data() + photometric_end,
+                                                static_cast<std::size_t>(geometric_count));
+  MotionEstimate geometric;
+  if (geometric_count > kMinimalSample) {
+    geometric = estimator_.estimate(geometric_source, geometric_target, geometric_sigma, &predicted);
+  }
+  const int photometric_inliers = photometric.ok ? photometric.inliers : 0;
+  const int geometric_inliers = geometric.ok ? geometric.inliers : 0;
+  result.photometric_matches = photometric_count;
+  result.photometric_inliers = photometric_inliers;
+  result.geometric_matches = geometric_count;
+  result.geometric_inliers = geometric_inliers;
+  result.matches = photometric_count + geometric_count;
+
+  // 2. One kind without inliers: the other carries the estimate alone.
+  MotionEstimate fused;
+  if (photometric_inliers == 0 || geometric_inliers == 0) {
+    fused = photometric_inliers > 0 ? photometric : geometric;
+    result.photometric_weight = photometric_inliers > 0 ? 1.0 : 0.0;
+    if (!fused.ok && fused.failure_reason.empty()) fused.failure_reason = "no matches of either kind";
+  } else {
+    // 3. W_P = (k_P / n_P) / (k_G / n_G), W_G = 1 / W_P; one weighted MSSE over both sets.
+    const double photometric_weight = (static_cast<double>(photometric_inliers) / photometric_count) /
+                                      (static_cast<double>(geometric_inliers) / geometric_count);
+    kind_weights_.assign(static_cast<std::size_t>(photometric_count), photometric_weight);
+    kind_weights_.insert(kind_weights_.end(), static_cast<std::size_t>(geometric_count), 1.0 / photometric_weight);
+    fused = estimator_.estimate(source_points_, target_points_, correspondence_sigma_m_, &predicted, kind_weights_);
+    result.photometric_weight = photometric_weight;
+  }
+  result.inliers = fused.ok ? fused.inliers : 0;
+  result.times.ms[kEstimation] += elapsed_ms(stage_start);
+  // Where the photometric kind is weak (plain surfaces), the geometric front-end's ICP refines
+  // the estimate on the dense clouds; where it is strong, a refinement that moves the estimate
+  // more than a feature registration's error is ICP sliding along a plane and is dropped.
+  if (config_.fused_icp_below_photometric_inliers > 0 && photometric_inliers < config_.fused_icp_below_photometric_inliers) {
+    stage_start = Clock::now();
+    const geometry::FrameRegistration refined =
+        geometric_.register_frames(target_geometric, current_geometric, fused.ok ? fused.T_target_source : predicted);
+    if (refined.ok && refined.refined_from != geometry::RefinementStart::kNone) {
+      fused.ok = true;
+      fused.T_target_source = refined.T_previous_current;
+      fused.inliers = std::max(fused.inliers, refined.inliers);
+      result.inliers = fused.inliers;
+      result.icp_refined = true;
+    }
+    result.times.ms[kIcp] += elapsed_ms(stage_start);
+  }
+  return fused;
 }
 
 bool SlamLoop::accept(const MotionEstimate& estimate, const Eigen::Isometry3d& T_world_target,
@@ -402,7 +504,14 @@ FrameResult SlamLoop::process(const hal::RgbdFrame& frame, const MotionPrior* pr
       previous_ >= 0 ? std::clamp(frame.stamp_s - previous_stamp_s_, 0.005, 0.5) : 1.0 / 30.0;
   previous_stamp_s_ = frame.stamp_s;
   tracked.velocity = velocity_of(predicted_motion(prior), frame_dt_s);
-  result.features = static_cast<int>(tracked.features.size());
+  const bool fused = config_.mode == Mode::kFused;
+  if (fused) {
+    tracked.geometric.count = 0;
+    if (have_depth && geometric_.extract(frame.depth, tracked.geometric) != geometry::GeometryStatus::kOk) {
+      tracked.geometric.count = 0;
+    }
+  }
+  result.features = static_cast<int>(tracked.features.size()) + (fused ? tracked.geometric.count : 0);
   result.times.ms[kFeatures] = elapsed_ms(stage_start);
   if (config_.icp_mode != IcpMode::kOff) {
     stage_start = Clock::now();
@@ -427,14 +536,16 @@ FrameResult SlamLoop::process(const hal::RgbdFrame& frame, const MotionPrior* pr
     const Eigen::Isometry3d& predicted_step = predicted_motion(prior);
     const Eigen::Isometry3d T_world_predicted = previous.T_world_cam * predicted_step;
     std::string_view reason;
-    if (image == nullptr) reason = "no usable image";
+    // Fused mode registers on depth alone when the frame has no usable image.
+    if (image == nullptr && !fused) reason = "no usable image";
     if (!have_depth) reason = "no usable depth";
     const TrackedFrame* target = nullptr;
     if (reason.empty()) {
       if (reference.features.source == source) {
-        const MotionEstimate estimate =
-            register_frames(reference.features, reference.velocity, tracked.features, tracked.velocity, result,
-                            reference.T_world_cam.inverse() * T_world_predicted);
+        const MotionEstimate estimate = register_frames(
+            reference.features, reference.velocity, tracked.features, tracked.velocity, result,
+            reference.T_world_cam.inverse() * T_world_predicted, fused ? &reference.geometric : nullptr,
+            fused ? &tracked.geometric : nullptr);
         if (accept(estimate, reference.T_world_cam, previous.T_world_cam, predicted_step, result.T_world_cam, reason)) {
           target = &reference;
           // Overlap relative to the inliers the reference had with the first frame registered
@@ -452,9 +563,10 @@ FrameResult SlamLoop::process(const hal::RgbdFrame& frame, const MotionPrior* pr
         (reference.features.source == ImageSource::kInfrared ? infrared_orb_ : orb_)
             .extract(*bridge_image, frame.depth, bridge_);
         result.times.ms[kFeatures] += elapsed_ms(stage_start);
-        const MotionEstimate estimate =
-            register_frames(reference.features, reference.velocity, bridge_, tracked.velocity, result,
-                            reference.T_world_cam.inverse() * T_world_predicted);
+        const MotionEstimate estimate = register_frames(
+            reference.features, reference.velocity, bridge_, tracked.velocity, result,
+            reference.T_world_cam.inverse() * T_world_predicted, fused ? &reference.geometric : nullptr,
+            fused ? &tracked.geometric : nullptr);
         if (accept(estimate, reference.T_world_cam, previous.T_world_cam, predicted_step, result.T_world_cam, reason)) {
           target = &reference;
         }
@@ -465,8 +577,9 @@ FrameResult SlamLoop::process(const hal::RgbdFrame& frame, const MotionPrior* pr
       // raised the ATE (fr1_rpy_head seeds 1-6 mean 0.028 -> 0.034 m, dark office 0.020 ->
       // 0.036 m): the previous frame is the fallback only.
       if (target == nullptr && previous_ != reference_ && previous.features.source == source) {
-        const MotionEstimate estimate = register_frames(previous.features, previous.velocity, tracked.features,
-                                                        tracked.velocity, result, predicted_step);
+        const MotionEstimate estimate =
+            register_frames(previous.features, previous.velocity, tracked.features, tracked.velocity, result,
+                            predicted_step, fused ? &previous.geometric : nullptr, fused ? &tracked.geometric : nullptr);
         if (accept(estimate, previous.T_world_cam, previous.T_world_cam, predicted_step, result.T_world_cam,
                    reason)) {
           target = &previous;

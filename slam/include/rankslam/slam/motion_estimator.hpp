@@ -31,11 +31,14 @@ class MotionEstimator {
   /// ranks and segments residuals in units of their own noise and weights the refit by 1/σ².
   /// RANSAC ignores it: its fixed metric threshold is what the baseline stands for.
   /// `T_target_source_predicted` (e.g. constant velocity) arbitrates when a low inlier fraction
-  /// calls for a second estimate (see the implementation).
+  /// calls for a second estimate (see the implementation). `weights`, when not empty, multiply
+  /// each correspondence's refit weight: the per-kind weights W_P, W_G of the fused registration
+  /// (ALGORITHMS.md §5).
   [[nodiscard]] MotionEstimate estimate(std::span<const Eigen::Vector3f> source,
                                         std::span<const Eigen::Vector3f> target,
                                         std::span<const double> sigma_m = {},
-                                        const Eigen::Isometry3d* T_target_source_predicted = nullptr);
+                                        const Eigen::Isometry3d* T_target_source_predicted = nullptr,
+                                        std::span<const double> weights = {});
 
  private:
   struct Impl;

@@ -100,6 +100,13 @@ struct FrameResult {
   int features = 0;
   int matches = 0;
   int inliers = 0;
+  /// Fused mode: each kind's own MSSE inliers among its matches, and the photometric weight
+  /// W_P of the combined estimate (W_G = 1 / W_P; ALGORITHMS.md §5).
+  int photometric_matches = 0;
+  int photometric_inliers = 0;
+  int geometric_matches = 0;
+  int geometric_inliers = 0;
+  double photometric_weight = 0.0;
   /// ICP refined the feature estimate (icp_mode on and the refinement accepted).
   bool icp_refined = false;
   /// The frame became the tracking key-frame the following frames register against.
@@ -155,6 +162,7 @@ class SlamLoop {
   /// Features of one frame with its pose.
   struct TrackedFrame {
     PhotometricFeatures features;
+    geometry::GeometricFeatures geometric;  ///< Fused mode only.
     VoxelCloud cloud;  ///< Only with ICP on.
     Eigen::Isometry3d T_world_cam = Eigen::Isometry3d::Identity();
     /// Velocity at the frame, for its rolling-shutter correction.
@@ -167,11 +175,19 @@ class SlamLoop {
   [[nodiscard]] ImageSource choose_source(const hal::RgbdFrame& frame);
   /// The feature image of `source`, or null when the frame lacks it.
   [[nodiscard]] const cv::Mat* feature_image(const hal::RgbdFrame& frame, ImageSource source);
-  /// Registers `current` against `target`: T_target_current. Adds to the matching and estimation
-  /// times.
+  /// Registers `current` against `target`: T_target_current. In fused mode the geometric
+  /// features of both frames join the estimate (fused_estimate). Adds to the matching and
+  /// estimation times.
   [[nodiscard]] MotionEstimate register_frames(const PhotometricFeatures& target, const Velocity& target_velocity,
                                                const PhotometricFeatures& current, const Velocity& current_velocity,
-                                               FrameResult& result, const Eigen::Isometry3d& predicted);
+                                               FrameResult& result, const Eigen::Isometry3d& predicted,
+                                               const geometry::GeometricFeatures* target_geometric = nullptr,
+                                               const geometry::GeometricFeatures* current_geometric = nullptr);
+  /// ALGORITHMS.md §5 over the photometric correspondences already in source_points_ /
+  /// target_points_ and the geometric matches of the two frames.
+  [[nodiscard]] MotionEstimate fused_estimate(const geometry::GeometricFeatures& target_geometric,
+                                              const geometry::GeometricFeatures& current_geometric,
+                                              FrameResult& result, const Eigen::Isometry3d& predicted);
   /// Checks an estimate of T_target_current; on success writes T_world_current, otherwise
   /// `reason` (when still empty).
   /// `predicted_step` is the motion expected from the previous frame (prior or constant velocity).
@@ -230,6 +246,10 @@ class SlamLoop {
   /// Pose of the frame whose features are geometric_previous_ (older than the previous frame
   /// when frames without features came in between).
   Eigen::Isometry3d T_world_geometric_target_ = Eigen::Isometry3d::Identity();
+
+  // Fused mode: the geometric matches of one registration and each correspondence's kind weight.
+  geometry::GeometricCorrespondences geometric_matches_;
+  std::vector<double> kind_weights_;
 
   std::vector<FeatureMatch> matches_;
   std::vector<Eigen::Vector3f> source_points_;
