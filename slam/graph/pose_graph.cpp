@@ -3,7 +3,9 @@
 #include <algorithm>
 #include <chrono>
 #include <cmath>
+#include <exception>
 #include <memory>
+#include <new>
 #include <tuple>
 
 #include <ceres/ceres.h>
@@ -369,44 +371,56 @@ OptimizeSummary PoseGraph::optimize(int max_iterations, const std::atomic<bool>*
     t_world_node = T.translation();
   }
 
-  ceres::EigenQuaternionManifold quaternion_manifold;
-  ceres::Problem::Options problem_options;
-  problem_options.manifold_ownership = ceres::DO_NOT_TAKE_OWNERSHIP;
-  ceres::Problem problem(problem_options);
-  for (int i = 0; i < edge_count_; ++i) {
-    const StoredEdge& stored = edges_[static_cast<std::size_t>(i)];
-    double* a = &parameters_[7 * static_cast<std::size_t>(stored.edge.from)];
-    double* b = &parameters_[7 * static_cast<std::size_t>(stored.edge.to)];
-    auto* cost_function = new ceres::AutoDiffCostFunction<EdgeResidual, 6, 4, 3, 4, 3>(
-        new EdgeResidual(stored.edge.T_from_to, stored.sqrt_information));
-    problem.AddResidualBlock(cost_function, nullptr, a, a + 4, b, b + 4);
-    problem.SetManifold(a, &quaternion_manifold);
-    problem.SetManifold(b, &quaternion_manifold);
-  }
-  if (fixed_id_ >= 0) {
-    double* fixed = &parameters_[7 * static_cast<std::size_t>(fixed_id_)];
-    if (problem.HasParameterBlock(fixed)) {
-      problem.SetParameterBlockConstant(fixed);
-      problem.SetParameterBlockConstant(fixed + 4);
-    }
-  }
-
-  ceres::Solver::Options options;
-  options.minimizer_type = ceres::TRUST_REGION;
-  options.trust_region_strategy_type = ceres::LEVENBERG_MARQUARDT;
-  options.linear_solver_type = ceres::SPARSE_NORMAL_CHOLESKY;
-  options.sparse_linear_algebra_library_type = ceres::SUITE_SPARSE;
-  options.max_num_iterations = max_iterations;
-  options.num_threads = 1;
-  options.logging_type = ceres::SILENT;
-  options.minimizer_progress_to_stdout = false;
-  CancelCallback cancel_callback(cancel);
-  if (cancel != nullptr) options.callbacks.push_back(&cancel_callback);
-  std::string options_error;
-  if (!options.IsValid(&options_error)) return finish("invalid Ceres solver options");
-
+  // Ceres allocates (and could throw std::bad_alloc) while building and solving; the solver
+  // thread must survive that, so it ends here as a failed solve with the poses unchanged.
   ceres::Solver::Summary summary;
-  ceres::Solve(options, &problem, &summary);
+  const auto solve = [&]() -> bool {
+    ceres::EigenQuaternionManifold quaternion_manifold;
+    ceres::Problem::Options problem_options;
+    problem_options.manifold_ownership = ceres::DO_NOT_TAKE_OWNERSHIP;
+    ceres::Problem problem(problem_options);
+    for (int i = 0; i < edge_count_; ++i) {
+      const StoredEdge& stored = edges_[static_cast<std::size_t>(i)];
+      double* a = &parameters_[7 * static_cast<std::size_t>(stored.edge.from)];
+      double* b = &parameters_[7 * static_cast<std::size_t>(stored.edge.to)];
+      auto* cost_function = new ceres::AutoDiffCostFunction<EdgeResidual, 6, 4, 3, 4, 3>(
+          new EdgeResidual(stored.edge.T_from_to, stored.sqrt_information));
+      problem.AddResidualBlock(cost_function, nullptr, a, a + 4, b, b + 4);
+      problem.SetManifold(a, &quaternion_manifold);
+      problem.SetManifold(b, &quaternion_manifold);
+    }
+    if (fixed_id_ >= 0) {
+      double* fixed = &parameters_[7 * static_cast<std::size_t>(fixed_id_)];
+      if (problem.HasParameterBlock(fixed)) {
+        problem.SetParameterBlockConstant(fixed);
+        problem.SetParameterBlockConstant(fixed + 4);
+      }
+    }
+
+    ceres::Solver::Options options;
+    options.minimizer_type = ceres::TRUST_REGION;
+    options.trust_region_strategy_type = ceres::LEVENBERG_MARQUARDT;
+    options.linear_solver_type = ceres::SPARSE_NORMAL_CHOLESKY;
+    options.sparse_linear_algebra_library_type = ceres::SUITE_SPARSE;
+    options.max_num_iterations = max_iterations;
+    options.num_threads = 1;
+    options.logging_type = ceres::SILENT;
+    options.minimizer_progress_to_stdout = false;
+    CancelCallback cancel_callback(cancel);
+    if (cancel != nullptr) options.callbacks.push_back(&cancel_callback);
+    std::string options_error;
+    if (!options.IsValid(&options_error)) return false;
+
+    ceres::Solve(options, &problem, &summary);
+    return true;
+  };
+  try {
+    if (!solve()) return finish("invalid Ceres solver options");
+  } catch (const std::bad_alloc&) {
+    return finish("out of memory in the solver: poses unchanged");
+  } catch (const std::exception&) {
+    return finish("the solver threw: poses unchanged");
+  }
   result.iterations = summary.num_successful_steps + summary.num_unsuccessful_steps;
   result.initial_cost = summary.initial_cost;
   result.final_cost = summary.final_cost;
