@@ -23,6 +23,23 @@ void PhotometricFeatures::clear() {
   descriptors = descriptor_storage.rowRange(0, 0);
 }
 
+namespace {
+
+OrbExtractorSettings extractor_settings(const SlamConfig& config, const DepthCameraModel& camera, int fast_threshold) {
+  OrbExtractorSettings settings;
+  // With OpenCV's ORB in its place the extractor is left without image buffers.
+  const bool used = config.orb_implementation == OrbImplementation::kFixedMemory;
+  settings.width = used ? camera.width() : 0;
+  settings.height = used ? camera.height() : 0;
+  settings.max_features = config.orb_features;
+  settings.scale_factor = static_cast<float>(config.orb_scale_factor);
+  settings.levels = config.orb_levels;
+  settings.fast_threshold = fast_threshold > 0 ? fast_threshold : config.orb_fast_threshold;
+  return settings;
+}
+
+}  // namespace
+
 OrbFrontend::OrbFrontend(const SlamConfig& config, const DepthCameraModel& camera, int fast_threshold)
     : camera_(camera),
       min_depth_m_(static_cast<float>(config.min_depth_m)),
@@ -30,21 +47,31 @@ OrbFrontend::OrbFrontend(const SlamConfig& config, const DepthCameraModel& camer
       depth_noise_per_m_(static_cast<float>(config.depth_noise_per_m)),
       keypoint_sigma_px_(static_cast<float>(config.keypoint_sigma_px)),
       scale_factor_(static_cast<float>(config.orb_scale_factor)),
-      orb_(cv::ORB::create(config.orb_features, static_cast<float>(config.orb_scale_factor), config.orb_levels, 31, 0, 2,
-                           cv::ORB::HARRIS_SCORE, 31, fast_threshold > 0 ? fast_threshold : config.orb_fast_threshold)) {
-  all_keypoints_.reserve(static_cast<std::size_t>(config.orb_features) * 2);
+      extractor_(extractor_settings(config, camera, fast_threshold)) {
+  if (config.orb_implementation == OrbImplementation::kOpenCv) {
+    opencv_orb_ = cv::ORB::create(config.orb_features, static_cast<float>(config.orb_scale_factor), config.orb_levels, 31,
+                                  0, 2, cv::ORB::HARRIS_SCORE, 31,
+                                  fast_threshold > 0 ? fast_threshold : config.orb_fast_threshold);
+    opencv_keypoints_.reserve(static_cast<std::size_t>(config.orb_features) * 2);
+  }
 }
 
 void OrbFrontend::extract(const cv::Mat& gray, const cv::Mat& depth, PhotometricFeatures& features) {
-  all_keypoints_.clear();
-  orb_->detectAndCompute(gray, cv::noArray(), all_keypoints_, all_descriptors_);
   features.clear();
-  if (features.descriptor_storage.rows < static_cast<int>(all_keypoints_.size())) {
-    features.descriptor_storage.create(static_cast<int>(all_keypoints_.size()), 32, CV_8UC1);
+  if (opencv_orb_) {
+    opencv_keypoints_.clear();
+    opencv_orb_->detectAndCompute(gray, cv::noArray(), opencv_keypoints_, opencv_descriptors_);
+  } else if (!extractor_.extract(gray)) {
+    return;
+  }
+  const std::vector<cv::KeyPoint>& detected = opencv_orb_ ? opencv_keypoints_ : extractor_.keypoints();
+  const cv::Mat descriptors = opencv_orb_ ? opencv_descriptors_ : extractor_.descriptors();
+  if (features.descriptor_storage.rows < static_cast<int>(detected.size())) {
+    features.descriptor_storage.create(static_cast<int>(detected.size()), 32, CV_8UC1);
   }
   int kept = 0;
-  for (std::size_t i = 0; i < all_keypoints_.size(); ++i) {
-    const cv::KeyPoint& keypoint = all_keypoints_[i];
+  for (std::size_t i = 0; i < detected.size(); ++i) {
+    const cv::KeyPoint& keypoint = detected[i];
     const int u = static_cast<int>(std::lround(keypoint.pt.x));
     const int v = static_cast<int>(std::lround(keypoint.pt.y));
     if (u < 0 || v < 0 || u >= camera_.width() || v >= camera_.height()) continue;
@@ -62,7 +89,7 @@ void OrbFrontend::extract(const cv::Mat& gray, const cv::Mat& depth, Photometric
     const float lateral_m = keypoint_sigma_px_ * std::pow(scale_factor_, static_cast<float>(keypoint.octave)) * z_m /
                             static_cast<float>(camera_.calibration().fx);
     features.sigma_m.push_back(std::sqrt(axial_m * axial_m + 2.0F * lateral_m * lateral_m));
-    std::memcpy(features.descriptor_storage.ptr(kept), all_descriptors_.ptr(static_cast<int>(i)), 32);
+    std::memcpy(features.descriptor_storage.ptr(kept), descriptors.ptr(static_cast<int>(i)), 32);
     ++kept;
   }
   // A view of the storage: the next frame reuses its memory.

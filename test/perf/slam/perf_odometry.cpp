@@ -1,7 +1,8 @@
 // Frame-to-frame RGB-D odometry on TUM fr1_rpy_head (180 frames), all methods in one run on the
 // same frames held in memory: OpenCV contrib's RgbdOdometry (dense photometric) and
 // RgbdICPOdometry (photometric + point-to-plane ICP) against rankslam's photometric pipeline
-// (ORB + MSSE) and its baseline (ORB + 2 cm RANSAC).
+// (ORB + MSSE) and its baseline (ORB + 2 cm RANSAC). The photometric pipeline runs twice: with
+// rankslam's fixed-memory ORB extractor (the product) and with OpenCV's cv::ORB in its place.
 //
 // Each benchmark iteration runs the whole sequence; counters: ate_m (TUM ATE RMSE), ms_per_frame
 // (median wall time of one frame), cpu_ms_per_frame (median thread CPU time), failed frames. A
@@ -141,7 +142,8 @@ void report(benchmark::State& state, const std::string& name, const Outcome& out
   outcomes()[name] = outcome;
 }
 
-void rankslam_odometry(benchmark::State& state, slam::Mode mode) {
+void rankslam_odometry(benchmark::State& state, slam::Mode mode,
+                       slam::OrbImplementation orb = slam::OrbImplementation::kFixedMemory) {
   const Sequence& s = sequence();
   if (!s.error.empty()) {
     state.SkipWithError(s.error.c_str());
@@ -151,6 +153,7 @@ void rankslam_odometry(benchmark::State& state, slam::Mode mode) {
   for (auto _ : state) {
     slam::SlamConfig config;
     config.mode = mode;
+    config.orb_implementation = orb;
     slam::SlamLoop loop(config, s.calibration);
     hal::RgbdFrame frame;
     outcome = run_sequence(s, [&](std::size_t i, Eigen::Isometry3d& T_world_cam, bool& failed) {
@@ -162,7 +165,10 @@ void rankslam_odometry(benchmark::State& state, slam::Mode mode) {
       failed = result.status == slam::FrameStatus::kFailed;
     });
   }
-  report(state, std::string("rankslam ") + std::string(slam::to_string(mode)), outcome);
+  report(state,
+         std::string("rankslam ") + std::string(slam::to_string(mode)) +
+             (orb == slam::OrbImplementation::kOpenCv ? " cv::ORB" : ""),
+         outcome);
 }
 
 template <class OdometryType>
@@ -218,11 +224,15 @@ void BM_OpenCvRgbdIcpOdometry(benchmark::State& state) {
 }
 void BM_RankslamPhotometric(benchmark::State& state) { rankslam_odometry(state, slam::Mode::kPhotometric); }
 void BM_RankslamBaseline(benchmark::State& state) { rankslam_odometry(state, slam::Mode::kBaseline); }
+void BM_RankslamPhotometricOpenCvOrb(benchmark::State& state) {
+  rankslam_odometry(state, slam::Mode::kPhotometric, slam::OrbImplementation::kOpenCv);
+}
 
 BENCHMARK(BM_OpenCvRgbdOdometry)->Iterations(1)->Unit(benchmark::kMillisecond);
 BENCHMARK(BM_OpenCvRgbdIcpOdometry)->Iterations(1)->Unit(benchmark::kMillisecond);
 BENCHMARK(BM_RankslamPhotometric)->Iterations(1)->Unit(benchmark::kMillisecond);
 BENCHMARK(BM_RankslamBaseline)->Iterations(1)->Unit(benchmark::kMillisecond);
+BENCHMARK(BM_RankslamPhotometricOpenCvOrb)->Iterations(1)->Unit(benchmark::kMillisecond);
 
 void print_table() {
   const auto& all = outcomes();
@@ -230,10 +240,10 @@ void print_table() {
   if (all.empty() || reference == all.end()) return;
   std::printf("\nfr1_rpy_head, %zu frames, frame to frame (ratios: method / rankslam photometric)\n",
               sequence().frames.size());
-  std::printf("%-24s %9s %12s %14s %7s %11s %10s\n", "method", "ATE [m]", "ms/frame", "CPU ms/frame", "failed",
+  std::printf("%-30s %9s %12s %14s %7s %11s %10s\n", "method", "ATE [m]", "ms/frame", "CPU ms/frame", "failed",
               "ATE ratio", "time ratio");
   for (const auto& [name, outcome] : all) {
-    std::printf("%-24s %9.4f %12.2f %14.2f %7d %11.2f %10.2f\n", name.c_str(), outcome.ate_m, outcome.ms_per_frame,
+    std::printf("%-30s %9.4f %12.2f %14.2f %7d %11.2f %10.2f\n", name.c_str(), outcome.ate_m, outcome.ms_per_frame,
                 outcome.cpu_ms_per_frame, outcome.failed, outcome.ate_m / reference->second.ate_m,
                 outcome.ms_per_frame / reference->second.ms_per_frame);
   }

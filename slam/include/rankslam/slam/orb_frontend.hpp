@@ -3,6 +3,7 @@
 #include "rankslam/slam/camera.hpp"
 #include "rankslam/slam/config.hpp"
 #include "rankslam/slam/image_source.hpp"
+#include "rankslam/slam/orb_extractor.hpp"
 
 #include <Eigen/Core>
 #include <opencv2/core/mat.hpp>
@@ -48,6 +49,9 @@ struct FeatureMatch {
 /// a depth step above 5 % in their 3×3 neighbourhood, → 0.032 m; a grid of 8 columns with a
 /// per-cell quota over twice the keypoints, 0.028–0.032 m for twice the detection work. The
 /// nearest pixel's depth is used.
+///
+/// Features come from OrbExtractor, whose memory is fixed at construction, unless
+/// config.orb_implementation selects OpenCV's cv::ORB (which allocates on every frame).
 class OrbFrontend {
  public:
   /// `fast_threshold` overrides config.orb_fast_threshold when positive (the IR image's contrast
@@ -64,9 +68,10 @@ class OrbFrontend {
   float depth_noise_per_m_;
   float keypoint_sigma_px_;
   float scale_factor_;
-  cv::Ptr<cv::ORB> orb_;
-  std::vector<cv::KeyPoint> all_keypoints_;
-  cv::Mat all_descriptors_;
+  OrbExtractor extractor_;
+  cv::Ptr<cv::ORB> opencv_orb_;  ///< Set only when config.orb_implementation is kOpenCv.
+  std::vector<cv::KeyPoint> opencv_keypoints_;
+  cv::Mat opencv_descriptors_;
 };
 
 /// Mutual nearest-neighbour matching by Hamming distance: i and j match when each is the
