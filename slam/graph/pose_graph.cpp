@@ -9,6 +9,7 @@
 #include <tuple>
 
 #include <ceres/ceres.h>
+#include <omp.h>
 #include <ceres/rotation.h>
 
 #include "lie.hpp"
@@ -359,6 +360,14 @@ OptimizeSummary PoseGraph::optimize(int max_iterations, const std::atomic<bool>*
     result.ok = true;
     return finish("no edges: nothing to optimise");
   }
+
+  // CHOLMOD (SuiteSparse 5) runs loops of its supernodal factorisation as OpenMP regions with a
+  // compiled-in team of 4 threads, whatever Ceres' num_threads says. On two cores shared with
+  // tracking those threads only add contention: on the 256-node, 2048-edge graph of perf_graph
+  // they doubled the solve's wall time (157 ms against 82 ms with OMP_THREAD_LIMIT=1). No active
+  // parallel levels keeps the regions on this thread; libgomp holds the setting per thread, so
+  // it reaches no other thread of the process.
+  omp_set_max_active_levels(0);
 
   // Parameters per slot: quaternion (x, y, z, w: Eigen's storage order) and translation.
   for (std::size_t slot = 0; slot < active_.size(); ++slot) {

@@ -158,9 +158,11 @@ class PoseGraph {
 
   /// Levenberg–Marquardt over all nodes that have edges, in place: SPARSE_NORMAL_CHOLESKY with
   /// SuiteSparse, each orientation on Ceres' EigenQuaternionManifold, the fixed node held
-  /// constant, one solver thread (the tracking thread needs the other core). Poses are written
-  /// back only when the solution is usable. Allocates (see the file comment). A non-null cancel
-  /// that becomes true stops the solve at the end of the current iteration, leaving the poses
+  /// constant, one solver thread (the tracking thread needs the other core). SuiteSparse's own
+  /// OpenMP regions are kept on the calling thread by omp_set_max_active_levels(0), a setting
+  /// libgomp keeps per thread and that stays with the calling thread. Poses are written back
+  /// only when the solution is usable. Allocates (see the file comment). A non-null cancel that
+  /// becomes true stops the solve at the end of the current iteration, leaving the poses
   /// unchanged.
   OptimizeSummary optimize(int max_iterations = 20, const std::atomic<bool>* cancel = nullptr);
 
