@@ -1,5 +1,7 @@
 #pragma once
 
+#include <sys/resource.h>
+
 #include "rankslam/slam/config.hpp"
 
 #include <cstdint>
@@ -70,6 +72,13 @@ inline constexpr slam::Mode kDefaultMode = slam::Mode::kPhotometric;
 [[nodiscard]] inline bool mode_implemented(slam::Mode mode) {
   return mode == slam::Mode::kBaseline || mode == slam::Mode::kPhotometric || mode == slam::Mode::kGeometric ||
          mode == slam::Mode::kFused;
+}
+
+/// The process' peak resident set size so far, MB (getrusage; 0 where unavailable).
+[[nodiscard]] inline double peak_rss_mb() {
+  rusage usage{};
+  if (getrusage(RUSAGE_SELF, &usage) != 0) return 0.0;
+  return static_cast<double>(usage.ru_maxrss) / 1024.0;  // Linux reports kilobytes
 }
 
 /// The scene `rankslam replay` simulates when given no recording.

@@ -191,6 +191,8 @@ int run_replay(const ReplayArgs& args) {
   std::size_t next_can_frame = 0;
 
   slam::SlamLoop loop(config, recording.calibration);
+  // Offline: each pose-graph solve is waited for, so a replay gives the same result every time.
+  loop.set_synchronous_backend(true);
   eval::Trajectory estimate;
   estimate.reserve(camera.frame_count());
   std::vector<double> frame_ms;
@@ -201,6 +203,13 @@ int run_replay(const ReplayArgs& args) {
   StatusCounts status_counts;
   std::vector<FrameRecord> frame_records;
   frame_records.reserve(camera.frame_count());
+  struct KeyframeLink {
+    int node = -1;
+    std::uint32_t generation = 0;
+    Eigen::Isometry3d T_keyframe_cam = Eigen::Isometry3d::Identity();
+  };
+  std::vector<KeyframeLink> keyframe_links;
+  keyframe_links.reserve(camera.frame_count());
 
   g_stop_requested = false;
   std::signal(SIGINT, request_stop);
@@ -240,9 +249,17 @@ int run_replay(const ReplayArgs& args) {
                              result.photometric_inliers, result.geometric_matches, result.geometric_inliers,
                              result.photometric_weight, result.wheels});
     estimate.push_back({frame.stamp_s, result.T_world_cam});
+    keyframe_links.push_back({result.keyframe_node, result.keyframe_generation, result.T_keyframe_cam});
     progress.update(static_cast<unsigned>(estimate.size()));
   }
   progress.finish();
+  // The last optimisation, then every frame re-expressed on its key-frame's optimised pose.
+  loop.finish();
+  for (std::size_t i = 0; i < estimate.size(); ++i) {
+    const KeyframeLink& link = keyframe_links[i];
+    Eigen::Isometry3d optimized;
+    if (loop.optimized_pose(link.node, link.generation, link.T_keyframe_cam, optimized)) estimate[i].T_world_cam = optimized;
+  }
   const replay::ReplayCounters counters = camera.counters();
   for (const auto& warning : camera.take_warnings()) std::cerr << "warning: " << warning << "\n";
   camera.close();
@@ -316,6 +333,9 @@ int run_replay(const ReplayArgs& args) {
     json.null("wheel_slip_events");
   }
   json.integer("keyframes", loop.keyframes());
+  json.integer("loop_closures", loop.loop_closures());
+  json.integer("retired_keyframes", loop.retired_keyframes());
+  json.number("peak_rss_mb", peak_rss_mb());
   json.integer("map_points", static_cast<long long>(loop.map().size()));
   json.boolean("interrupted", interrupted);
   if (accuracy) {

@@ -374,12 +374,17 @@ int run_live(const RunArgs& args) {
     std::cerr << "error: " << error << "\n";
     exit_code = kExitOutput;
   };
+  // The trajectory is what the pose output sent; the map takes the last optimised key-frame poses.
+  loop.finish();
   report_error(eval::write_tum_trajectory(out / "trajectory.txt", trajectory));
   report_error(hal::write_file_atomically(out / "map.ply", std::string_view(loop.map().to_ply())));
 
   JsonWriter json;
   json.begin_object();
   json.string("config", args.config.string());
+  json.integer("keyframes", loop.keyframes());
+  json.integer("loop_closures", loop.loop_closures());
+  json.number("peak_rss_mb", peak_rss_mb());
   json.string("camera", (openni2_camera != nullptr ? "openni2:" + robot.camera_location : "replay:" + recording.root.string()));
   if (openni2_camera != nullptr) {
     const openni2::OpenNI2Counters& c = openni2_camera->counters();

@@ -160,6 +160,35 @@ struct SlamConfig {
   // office 0.014 / 0.004 / 0.010 m, zigzag-plain 0.532 / 0.0007 / 0.0007 m, poster-wall 0.005 /
   // 0.96 (ICP slides on the one plane) / 0.005 m; fr1_rpy_head 0.034 / 0.047 / 0.034 m. 0: never.
   int fused_icp_below_photometric_inliers = 100;
+  // Back-end (ALGORITHMS.md §3 "Back-end", §5): key-frame store, loop closure, pose graph.
+  // Stored key-frames (features, map points, graph node); when full, one far from the camera with
+  // the fewest loop closures is retired (KeyframeStore::retirement_candidate). About 0.8 MB each.
+  int keyframe_capacity = 128;
+  // Loop-closure candidates: stored key-frames other than the last loop_min_keyframe_gap, within
+  // loop_search_radius_m / loop_search_rotation_deg of the new key-frame, both bounds widened by
+  // the drift allowed over the path travelled since the candidate (loop_drift_per_m of it, and
+  // loop_drift_deg_per_m); the loop_max_candidates nearest are registered.
+  int loop_min_keyframe_gap = 5;
+  double loop_search_radius_m = 0.5;
+  double loop_search_rotation_deg = 30.0;
+  double loop_drift_per_m = 0.1;
+  double loop_drift_deg_per_m = 3.0;
+  int loop_max_candidates = 3;
+  // Adaptive threshold ε on k_P + k_G (ALGORITHMS.md §5): initial value until two closures exist
+  // (lean low: the thesis saw 68-207), and T_ε.
+  double loop_initial_threshold = 60.0;
+  double loop_threshold_deviations = 1.0;
+  // Protection against false closures: the registered relative pose may differ from the graph's
+  // by at most this plus the drift allowance; the inliers must spread at least this far
+  // (square root of the middle eigenvalue of their covariance: not a line or a blob).
+  double loop_max_correction_m = 0.1;
+  double loop_max_correction_deg = 5.0;
+  double loop_min_inlier_spread_m = 0.05;
+  // Edge information from the inlier count (graph::information_from_matches): the error of a
+  // registration on one match.
+  double graph_match_sigma_m = 0.02;
+  double graph_match_sigma_deg = 1.0;
+  int graph_iterations = 20;
   int seed = 1;
 
   /// The depth-only front-end of the geometric mode (ALGORITHMS.md §3–4); its own parameter list.
@@ -235,6 +264,29 @@ struct SlamConfig {
           "fused mode: position noise of a geometric keypoint added per frame, in voxel leaves");
     visit("fused_icp_below_photometric_inliers", fused_icp_below_photometric_inliers, 0, 100000, "",
           "fused mode: fewer photometric inliers than this call for the geometric ICP refinement (0: never)");
+    visit("keyframe_capacity", keyframe_capacity, 2, 65536, "", "key-frames the back-end stores (about 0.8 MB each)");
+    visit("loop_min_keyframe_gap", loop_min_keyframe_gap, 1, 10000, "",
+          "the most recent key-frames are not loop-closure candidates");
+    visit("loop_search_radius_m", loop_search_radius_m, 0.0, 100.0, "m", "loop-closure candidates lie this close");
+    visit("loop_search_rotation_deg", loop_search_rotation_deg, 0.0, 180.0, "deg",
+          "loop-closure candidates are turned at most this much from the new key-frame");
+    visit("loop_drift_per_m", loop_drift_per_m, 0.0, 10.0, "",
+          "translation drift allowed per metre travelled (widens the search and the consistency check)");
+    visit("loop_drift_deg_per_m", loop_drift_deg_per_m, 0.0, 180.0, "deg/m", "rotation drift allowed per metre travelled");
+    visit("loop_max_candidates", loop_max_candidates, 0, 100, "", "nearest candidates registered per key-frame (0: no loop closure)");
+    visit("loop_initial_threshold", loop_initial_threshold, 0.0, 100000.0, "",
+          "inliers (photometric + geometric) that close a loop until two closures set the adaptive threshold");
+    visit("loop_threshold_deviations", loop_threshold_deviations, 0.0, 10.0, "",
+          "T_epsilon: standard deviations below the mean inlier counts of past closures");
+    visit("loop_max_correction_m", loop_max_correction_m, 0.0, 100.0, "m",
+          "a closure may move the key-frame this much from the graph's estimate (plus drift allowance)");
+    visit("loop_max_correction_deg", loop_max_correction_deg, 0.0, 180.0, "deg",
+          "a closure may turn the key-frame this much from the graph's estimate (plus drift allowance)");
+    visit("loop_min_inlier_spread_m", loop_min_inlier_spread_m, 0.0, 10.0, "m",
+          "a closure's inliers must spread at least this far across their second axis");
+    visit("graph_match_sigma_m", graph_match_sigma_m, 1e-6, 10.0, "m", "translation error of a registration on one match");
+    visit("graph_match_sigma_deg", graph_match_sigma_deg, 1e-6, 180.0, "deg", "rotation error of a registration on one match");
+    visit("graph_iterations", graph_iterations, 1, 1000, "", "Levenberg-Marquardt iterations per pose-graph optimisation");
     visit("seed", seed, 0, 2147483647, "", "random seed: equal seeds give equal results");
   }
 };

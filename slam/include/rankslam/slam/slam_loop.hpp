@@ -6,7 +6,10 @@
 #include "rankslam/slam/camera.hpp"
 #include "rankslam/slam/config.hpp"
 #include "rankslam/slam/icp.hpp"
+#include "rankslam/graph/background_optimizer.hpp"
+#include "rankslam/graph/pose_graph.hpp"
 #include "rankslam/slam/image_source.hpp"
+#include "rankslam/slam/keyframe_store.hpp"
 #include "rankslam/slam/motion_estimator.hpp"
 #include "rankslam/slam/orb_frontend.hpp"
 #include "rankslam/slam/point_map.hpp"
@@ -113,6 +116,16 @@ struct FrameResult {
   bool new_reference = false;
   /// The frame was added to the map as a key-frame.
   bool keyframe = false;
+  /// The frame's key-frame (the latest stored at or before it): its pose-graph node and the node's
+  /// generation, and the frame's pose relative to it. SlamLoop::optimized_pose() re-expresses the
+  /// frame after the graph was optimised.
+  int keyframe_node = -1;
+  std::uint32_t keyframe_generation = 0;
+  Eigen::Isometry3d T_keyframe_cam = Eigen::Isometry3d::Identity();
+  /// A loop closure was accepted at this frame (a key-frame).
+  bool loop_closure = false;
+  /// An optimised pose graph was applied at this frame: the pose jumped by the map correction.
+  bool graph_applied = false;
   WheelCheck wheels;
   StageTimes times;
 };
@@ -153,6 +166,23 @@ class SlamLoop {
 
   [[nodiscard]] const PointMap& map() const { return map_; }
   [[nodiscard]] int keyframes() const { return keyframes_; }
+  [[nodiscard]] int loop_closures() const { return loop_closures_; }
+  /// Key-frames retired from the full store.
+  [[nodiscard]] int retired_keyframes() const { return retired_keyframes_; }
+  /// The adaptive loop-closure threshold ε now.
+  [[nodiscard]] double loop_threshold() const { return loop_threshold_.value(); }
+
+  /// Offline replay: optimise the pose graph on the calling thread's schedule (wait for each
+  /// solve), so that results do not depend on thread timing. Live runs leave it off.
+  void set_synchronous_backend(bool synchronous) { synchronous_backend_ = synchronous; }
+  /// End of a run: optimises the graph once more if a closure is pending (waits for it) and
+  /// rebuilds the map from the stored key-frames at their optimised poses.
+  void finish();
+  /// The pose of a frame re-expressed on its key-frame's optimised pose: T_world_keyframe ·
+  /// T_keyframe_cam, from the frame's FrameResult::keyframe_node, keyframe_generation and
+  /// T_keyframe_cam. False (pose unchanged) when the key-frame was retired.
+  [[nodiscard]] bool optimized_pose(int keyframe_node, std::uint32_t keyframe_generation,
+                                    const Eigen::Isometry3d& T_keyframe_cam, Eigen::Isometry3d& T_world_cam) const;
   [[nodiscard]] const SlamConfig& config() const { return config_; }
 
  private:
@@ -195,7 +225,18 @@ class SlamLoop {
                             const Eigen::Isometry3d& T_world_previous, const Eigen::Isometry3d& predicted_step,
                             Eigen::Isometry3d& T_world_current, std::string_view& reason) const;
   void refine_with_icp(const TrackedFrame& target, const TrackedFrame& current, FrameResult& result);
-  void add_keyframe_to_map(const hal::RgbdFrame& frame, const Eigen::Isometry3d& T_world_cam);
+  void add_keyframe_to_map(const hal::RgbdFrame& frame, const Eigen::Isometry3d& T_world_cam, StoredKeyframe* stored);
+  /// Stores the frame as a key-frame: graph node, sequential edge from the previous key-frame,
+  /// then the loop-closure search.
+  void store_keyframe(const hal::RgbdFrame& frame, bool have_depth, FrameResult& result);
+  /// Registers the new key-frame against nearby stored ones; adds accepted closures to the graph.
+  void close_loops(int slot, FrameResult& result);
+  /// Submits a pending graph and applies a finished optimisation (moving the tracking state by
+  /// the correction).
+  void run_backend(FrameResult& result);
+  void apply_optimized_graph(FrameResult& result);
+  /// Moves every pose the tracking holds by a world-frame correction.
+  void correct_tracking(const Eigen::Isometry3d& correction);
   /// Geometric mode: depth-only registration of each frame against the previous one.
   [[nodiscard]] FrameResult process_geometric(const hal::RgbdFrame& frame, const MotionPrior* prior);
   /// Motion predicted from the previous frame to this one: the prior's, else constant velocity.
@@ -275,6 +316,25 @@ class SlamLoop {
   Eigen::Isometry3d T_world_last_keyframe_ = Eigen::Isometry3d::Identity();
   int keyframes_ = 0;
   std::mt19937 map_sampler_;
+
+  // Back-end. The current frame's features (set before finish_frame) are what a new key-frame
+  // stores.
+  const PhotometricFeatures* current_photometric_ = nullptr;
+  const geometry::GeometricFeatures* current_geometric_ = nullptr;
+  KeyframeStore keyframe_store_;
+  graph::PoseGraph graph_;
+  graph::BackgroundOptimizer optimizer_;
+  graph::OptimizedPoses optimized_;
+  AdaptiveLoopThreshold loop_threshold_;
+  int latest_keyframe_slot_ = -1;
+  std::int64_t keyframe_sequence_ = 0;
+  double path_m_ = 0.0;
+  int loop_closures_ = 0;
+  int retired_keyframes_ = 0;
+  bool graph_pending_ = false;
+  bool synchronous_backend_ = false;
+  /// Candidate slots and their distances for one loop-closure search (set-up sized).
+  std::vector<std::pair<double, int>> loop_candidates_;
 };
 
 }  // namespace rankslam::slam

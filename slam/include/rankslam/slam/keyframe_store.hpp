@@ -1,0 +1,104 @@
+#pragma once
+
+// The key-frames the back-end keeps (ALGORITHMS.md §3 "Back-end", §5): each stored key-frame's
+// photometric and geometric features (for loop-closure registration), its map points in its own
+// frame (so the map follows the optimised poses) and its pose-graph node. Every slot is
+// allocated at construction; storing a key-frame copies into a free slot, and when none is free
+// the store retires one (retirement_candidate()) so memory stays bounded.
+
+#include "rankslam/geometry/frontend.hpp"
+#include "rankslam/slam/orb_frontend.hpp"
+
+#include <Eigen/Geometry>
+
+#include <cstdint>
+#include <span>
+#include <vector>
+
+namespace rankslam::slam {
+
+/// A map point in its key-frame's camera frame, with its colour.
+struct KeyframePoint {
+  Eigen::Vector3f point_cam = Eigen::Vector3f::Zero();
+  std::uint8_t blue = 0;
+  std::uint8_t green = 0;
+  std::uint8_t red = 0;
+};
+
+struct StoredKeyframe {
+  bool used = false;
+  /// Pose-graph node of the key-frame (its slot in the graph) and the node's generation.
+  int node = -1;
+  std::uint32_t generation = 0;
+  /// Order of creation: tells the most recent key-frames apart.
+  std::int64_t sequence = 0;
+  /// Camera pose: the tracking estimate, replaced by the optimised one.
+  Eigen::Isometry3d T_world_cam = Eigen::Isometry3d::Identity();
+  /// Distance travelled by the camera (sum of key-frame to key-frame translations) when stored.
+  double path_m = 0.0;
+  PhotometricFeatures photometric;
+  geometry::GeometricFeatures geometric;
+  std::vector<KeyframePoint> points;
+  int point_count = 0;
+  /// Loop closures this key-frame takes part in: the retirement policy keeps well-connected ones.
+  int loop_closures = 0;
+};
+
+/// Fixed-capacity key-frame storage.
+class KeyframeStore {
+ public:
+  /// Set-up (allocates): `capacity` slots, each with room for the given features and points.
+  KeyframeStore(int capacity, std::size_t photometric_capacity, int geometric_capacity, int points_per_keyframe);
+
+  [[nodiscard]] int capacity() const { return static_cast<int>(slots_.size()); }
+  [[nodiscard]] int size() const { return size_; }
+  [[nodiscard]] StoredKeyframe& slot(int index) { return slots_[static_cast<std::size_t>(index)]; }
+  [[nodiscard]] const StoredKeyframe& slot(int index) const { return slots_[static_cast<std::size_t>(index)]; }
+
+  /// A free slot, or -1 when the store is full.
+  [[nodiscard]] int free_slot() const;
+  /// Marks a slot used (its contents are the caller's to fill) / free.
+  void occupy(int index);
+  void release(int index);
+
+  /// The slot to retire when the store is full: among key-frames at least `min_distance_m` from
+  /// `T_world_current` and older than the `protect_recent` most recent ones, the one with the
+  /// fewest loop closures, the oldest among equals. A key-frame with loop closures is kept while
+  /// any without remains: those are the constraints that hold the map together. -1 when every
+  /// key-frame is protected.
+  [[nodiscard]] int retirement_candidate(const Eigen::Isometry3d& T_world_current, double min_distance_m,
+                                         int protect_recent) const;
+
+  /// Copies features into a slot (no allocation: the slot was sized at set-up; features beyond
+  /// its capacity are dropped).
+  static void copy_features(const PhotometricFeatures& from, PhotometricFeatures& to);
+  static void copy_features(const geometry::GeometricFeatures& from, geometry::GeometricFeatures& to);
+
+ private:
+  std::vector<StoredKeyframe> slots_;
+  int size_ = 0;
+};
+
+/// The adaptive loop-closure threshold ε (ALGORITHMS.md §5): ε = (μ_P − T_ε·σ_P) + (μ_G − T_ε·σ_G)
+/// over the photometric and geometric inlier counts of the loop closures accepted so far; the
+/// initial value until two closures exist. A candidate closes the loop when k_P + k_G ≥ ε.
+class AdaptiveLoopThreshold {
+ public:
+  AdaptiveLoopThreshold(double initial, double deviations) : initial_(initial), deviations_(deviations) {}
+
+  [[nodiscard]] double value() const;
+  /// Adds an accepted closure's inlier counts (running sums: no allocation).
+  void add(int photometric_inliers, int geometric_inliers);
+  [[nodiscard]] int count() const { return count_; }
+
+ private:
+  double initial_;
+  double deviations_;
+  int count_ = 0;
+  double sum_p_ = 0.0;
+  double sum_sq_p_ = 0.0;
+  double sum_g_ = 0.0;
+  double sum_sq_g_ = 0.0;
+};
+
+}  // namespace rankslam::slam

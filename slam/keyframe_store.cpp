@@ -1,0 +1,109 @@
+#include "rankslam/slam/keyframe_store.hpp"
+
+#include <algorithm>
+#include <cmath>
+#include <cstring>
+#include <limits>
+
+namespace rankslam::slam {
+
+KeyframeStore::KeyframeStore(int capacity, std::size_t photometric_capacity, int geometric_capacity,
+                             int points_per_keyframe)
+    : slots_(static_cast<std::size_t>(std::max(0, capacity))) {
+  for (StoredKeyframe& keyframe : slots_) {
+    keyframe.photometric.reserve(photometric_capacity);
+    // Keypoints and descriptors only: loop closure matches descriptors, it runs no ICP.
+    keyframe.geometric.reserve(geometric_capacity, 0, 0);
+    keyframe.points.assign(static_cast<std::size_t>(std::max(0, points_per_keyframe)), KeyframePoint{});
+  }
+}
+
+int KeyframeStore::free_slot() const {
+  for (std::size_t i = 0; i < slots_.size(); ++i) {
+    if (!slots_[i].used) return static_cast<int>(i);
+  }
+  return -1;
+}
+
+void KeyframeStore::occupy(int index) {
+  StoredKeyframe& keyframe = slot(index);
+  if (!keyframe.used) ++size_;
+  keyframe.used = true;
+  keyframe.loop_closures = 0;
+  keyframe.point_count = 0;
+  keyframe.node = -1;
+}
+
+void KeyframeStore::release(int index) {
+  StoredKeyframe& keyframe = slot(index);
+  if (keyframe.used) --size_;
+  keyframe.used = false;
+  keyframe.node = -1;
+}
+
+int KeyframeStore::retirement_candidate(const Eigen::Isometry3d& T_world_current, double min_distance_m,
+                                        int protect_recent) const {
+  std::int64_t newest = 0;
+  for (const StoredKeyframe& keyframe : slots_) {
+    if (keyframe.used) newest = std::max(newest, keyframe.sequence);
+  }
+  int best = -1;
+  for (std::size_t i = 0; i < slots_.size(); ++i) {
+    const StoredKeyframe& keyframe = slots_[i];
+    if (!keyframe.used || keyframe.sequence > newest - protect_recent) continue;
+    if ((keyframe.T_world_cam.translation() - T_world_current.translation()).norm() < min_distance_m) continue;
+    if (best < 0) {
+      best = static_cast<int>(i);
+      continue;
+    }
+    const StoredKeyframe& chosen = slots_[static_cast<std::size_t>(best)];
+    if (keyframe.loop_closures < chosen.loop_closures ||
+        (keyframe.loop_closures == chosen.loop_closures && keyframe.sequence < chosen.sequence)) {
+      best = static_cast<int>(i);
+    }
+  }
+  return best;
+}
+
+void KeyframeStore::copy_features(const PhotometricFeatures& from, PhotometricFeatures& to) {
+  to.clear();
+  const auto n = static_cast<int>(std::min({from.size(), to.keypoints.capacity(), to.points_cam.capacity(),
+                                            static_cast<std::size_t>(to.descriptor_storage.rows)}));
+  to.keypoints.assign(from.keypoints.begin(), from.keypoints.begin() + n);
+  to.points_cam.assign(from.points_cam.begin(), from.points_cam.begin() + n);
+  to.sigma_m.assign(from.sigma_m.begin(), from.sigma_m.begin() + n);
+  for (int i = 0; i < n; ++i) std::memcpy(to.descriptor_storage.ptr(i), from.descriptors.ptr(i), 32);
+  to.descriptors = to.descriptor_storage.rowRange(0, n);
+  to.source = from.source;
+}
+
+void KeyframeStore::copy_features(const geometry::GeometricFeatures& from, geometry::GeometricFeatures& to) {
+  const int n = std::min(from.count, to.capacity());
+  std::copy_n(from.points_cam.begin(), n, to.points_cam.begin());
+  std::copy_n(from.normals.begin(), n, to.normals.begin());
+  std::copy_n(from.sigma_m.begin(), n, to.sigma_m.begin());
+  std::copy_n(from.descriptors.begin(), static_cast<std::ptrdiff_t>(n) * geometry::kShotSize, to.descriptors.begin());
+  to.count = n;
+  to.resolution_m = from.resolution_m;
+  to.voxel_leaf_m = from.voxel_leaf_m;
+}
+
+double AdaptiveLoopThreshold::value() const {
+  if (count_ < 2) return initial_;
+  const double n = count_;
+  const double mean_p = sum_p_ / n;
+  const double mean_g = sum_g_ / n;
+  const double sigma_p = std::sqrt(std::max(0.0, sum_sq_p_ / n - mean_p * mean_p));
+  const double sigma_g = std::sqrt(std::max(0.0, sum_sq_g_ / n - mean_g * mean_g));
+  return (mean_p - deviations_ * sigma_p) + (mean_g - deviations_ * sigma_g);
+}
+
+void AdaptiveLoopThreshold::add(int photometric_inliers, int geometric_inliers) {
+  ++count_;
+  sum_p_ += photometric_inliers;
+  sum_sq_p_ += static_cast<double>(photometric_inliers) * photometric_inliers;
+  sum_g_ += geometric_inliers;
+  sum_sq_g_ += static_cast<double>(geometric_inliers) * geometric_inliers;
+}
+
+}  // namespace rankslam::slam

@@ -1,0 +1,103 @@
+#include "rankslam/slam/keyframe_store.hpp"
+
+#include <gtest/gtest.h>
+
+#include <cmath>
+
+namespace rankslam::slam {
+namespace {
+
+Eigen::Isometry3d at(double x_m) {
+  Eigen::Isometry3d pose = Eigen::Isometry3d::Identity();
+  pose.translation().x() = x_m;
+  return pose;
+}
+
+// Fills every slot with key-frames 1 m apart along x, in creation order.
+void fill(KeyframeStore& store) {
+  for (int i = 0; i < store.capacity(); ++i) {
+    const int slot = store.free_slot();
+    ASSERT_EQ(slot, i);
+    store.occupy(slot);
+    store.slot(slot).sequence = i + 1;
+    store.slot(slot).T_world_cam = at(i);
+  }
+}
+
+TEST(KeyframeStore, FillsFreeSlotsThenReportsFull) {
+  KeyframeStore store(4, 10, 5, 20);
+  EXPECT_EQ(store.size(), 0);
+  fill(store);
+  EXPECT_EQ(store.size(), 4);
+  EXPECT_EQ(store.free_slot(), -1);
+  store.release(2);
+  EXPECT_EQ(store.size(), 3);
+  EXPECT_EQ(store.free_slot(), 2);
+}
+
+TEST(KeyframeStore, RetiresTheOldestUnconnectedKeyframeAwayFromTheCamera) {
+  KeyframeStore store(6, 10, 5, 20);
+  fill(store);
+  // Slot 0 holds a loop closure: kept while unconnected ones remain.
+  store.slot(0).loop_closures = 1;
+  // Camera at x = 5; key-frames within 1.5 m (slots 4, 5) and the 2 most recent are protected.
+  EXPECT_EQ(store.retirement_candidate(at(5.0), 1.5, 2), 1);
+  store.slot(1).loop_closures = 2;
+  store.slot(2).loop_closures = 1;
+  store.slot(3).loop_closures = 1;
+  // Now every candidate has closures: the fewest, then the oldest.
+  EXPECT_EQ(store.retirement_candidate(at(5.0), 1.5, 2), 0);
+  // All within reach of the camera: nothing may go.
+  EXPECT_EQ(store.retirement_candidate(at(2.5), 10.0, 2), -1);
+}
+
+TEST(KeyframeStore, CopiesFeaturesIntoTheSlotsPreallocatedMemory) {
+  PhotometricFeatures from;
+  from.reserve(8);
+  for (int i = 0; i < 3; ++i) {
+    from.keypoints.emplace_back(static_cast<float>(i), 1.0F, 31.0F);
+    from.points_cam.emplace_back(static_cast<float>(i), 0.0F, 1.0F);
+    from.sigma_m.push_back(0.01F * static_cast<float>(i + 1));
+  }
+  for (int i = 0; i < 3; ++i) from.descriptor_storage.row(i).setTo(i + 7);
+  from.descriptors = from.descriptor_storage.rowRange(0, 3);
+  from.source = ImageSource::kInfrared;
+
+  KeyframeStore store(1, 8, 4, 10);
+  PhotometricFeatures& to = store.slot(0).photometric;
+  const unsigned char* memory = to.descriptor_storage.data;
+  KeyframeStore::copy_features(from, to);
+  ASSERT_EQ(to.size(), 3U);
+  EXPECT_EQ(to.descriptor_storage.data, memory);
+  EXPECT_EQ(to.descriptors.rows, 3);
+  EXPECT_EQ(to.descriptors.at<unsigned char>(2, 31), 9);
+  EXPECT_FLOAT_EQ(to.sigma_m[1], 0.02F);
+  EXPECT_EQ(to.source, ImageSource::kInfrared);
+
+  geometry::GeometricFeatures geometric;
+  geometric.reserve(6, 0, 0);
+  geometric.count = 6;
+  geometric.descriptors[5 * geometry::kShotSize] = 0.5F;
+  geometric.voxel_leaf_m = 0.03F;
+  geometry::GeometricFeatures& stored = store.slot(0).geometric;
+  KeyframeStore::copy_features(geometric, stored);
+  EXPECT_EQ(stored.count, 4);  // capped at the slot's capacity
+  EXPECT_FLOAT_EQ(stored.voxel_leaf_m, 0.03F);
+}
+
+TEST(AdaptiveLoopThreshold, StartsAtTheInitialValueThenFollowsMeanMinusDeviation) {
+  AdaptiveLoopThreshold threshold(60.0, 1.0);
+  EXPECT_DOUBLE_EQ(threshold.value(), 60.0);
+  threshold.add(100, 40);
+  EXPECT_DOUBLE_EQ(threshold.value(), 60.0);  // one closure is not a distribution
+  threshold.add(200, 60);
+  // Photometric 150 ± 50, geometric 50 ± 10: (150 - 50) + (50 - 10).
+  EXPECT_NEAR(threshold.value(), 140.0, 1e-9);
+  AdaptiveLoopThreshold strict(60.0, 0.0);
+  strict.add(100, 40);
+  strict.add(200, 60);
+  EXPECT_NEAR(strict.value(), 200.0, 1e-9);
+}
+
+}  // namespace
+}  // namespace rankslam::slam
