@@ -8,6 +8,11 @@
 
 #include "fast_math.hpp"
 
+#if defined(__x86_64__) && defined(__GNUC__)
+#include <immintrin.h>
+#define RANKSLAM_GEOMETRY_HAVE_AVX2_SHOT 1
+#endif
+
 namespace rankslam::geometry {
 
 namespace {
@@ -20,40 +25,348 @@ constexpr int kStride = kShotCosineBins + 1;  // values per volume
 // PCL's sign tie-break looks at this many neighbours around the median distance.
 constexpr int kTieBreakPoints = 5;
 
+// Neighbours processed together: one AVX register, two SSE / NEON registers.
+constexpr int kLanes = 8;
+using Lanes = Eigen::Array<float, kLanes, 1>;
+using LaneMap = Eigen::Map<Lanes>;
+using ConstLaneMap = Eigen::Map<const Lanes>;
+
+struct VoteArrays {
+  const float* dx;
+  const float* dy;
+  const float* dz;
+  const float* nx;
+  const float* ny;
+  const float* nz;
+  const float* distance;
+  float* own;
+  float* own_weight;
+  float* cosine;
+  float* cosine_weight;
+  float* radial;
+  float* radial_weight;
+  float* elevation;
+  float* elevation_weight;
+  float* azimuth;
+  float* azimuth_weight;
+};
+
+struct VoteFrame {
+  Eigen::Vector3f x, y, z;  // LRF axes
+  float radius_1_4, radius_1_2, radius_3_4;
+};
+
+// The bins (as floats) and weights of every neighbour's five votes, branch-free (PCL's branches
+// as selects: a neighbour that PCL does not let vote for an adjacent volume votes 0 into its own
+// bin instead). Portable version, one neighbour at a time.
+void vote_bins_portable(const VoteArrays& v, const VoteFrame& f, int end) {
+  constexpr auto kStrideF = static_cast<float>(kStride);
+  constexpr auto kBins = static_cast<float>(kShotCosineBins);
+  constexpr auto kVolumesF = static_cast<float>(kShotVolumes);
+  constexpr auto kPif = static_cast<float>(detail::kPi);
+  constexpr auto kRad45f = static_cast<float>(kRad45);
+  constexpr auto kRad90f = static_cast<float>(kRad90);
+  constexpr auto kRad135f = static_cast<float>(kRad135);
+  constexpr auto kRadPi78f = static_cast<float>(kRadPi78);
+  constexpr float kInverseRad45 = 1.0F / kRad45f;
+  constexpr float kInverseRad90 = 1.0F / kRad90f;
+  const Eigen::Vector3f& frame_x = f.x;
+  const Eigen::Vector3f& frame_y = f.y;
+  const Eigen::Vector3f& frame_z = f.z;
+  const float radius_1_4 = f.radius_1_4;
+  const float radius_1_2 = f.radius_1_2;
+  const float radius_3_4 = f.radius_3_4;
+  const float inverse_radius_1_2 = 1.0F / radius_1_2;
+  const float* const dx_data = v.dx;
+  const float* const dy_data = v.dy;
+  const float* const dz_data = v.dz;
+  const float* const nx_data = v.nx;
+  const float* const ny_data = v.ny;
+  const float* const nz_data = v.nz;
+  const float* const distance_data = v.distance;
+  float* const own_data = v.own;
+  float* const own_weight_data = v.own_weight;
+  float* const cosine_data = v.cosine;
+  float* const cosine_weight_data = v.cosine_weight;
+  float* const radial_data = v.radial;
+  float* const radial_weight_data = v.radial_weight;
+  float* const elevation_data = v.elevation;
+  float* const elevation_weight_data = v.elevation_weight;
+  float* const azimuth_data = v.azimuth;
+  float* const azimuth_weight_data = v.azimuth_weight;
+  for (int k = 0; k < end; ++k) {
+    const float dx = dx_data[k], dy = dy_data[k], dz = dz_data[k];
+    const float distance = distance_data[k];
+    const float x = dx * frame_x.x() + dy * frame_x.y() + dz * frame_x.z();
+    const float y = dx * frame_y.x() + dy * frame_y.y() + dz * frame_y.z();
+    const float z = dx * frame_z.x() + dy * frame_z.y() + dz * frame_z.z();
+    float cosine = nx_data[k] * frame_z.x() + ny_data[k] * frame_z.y() + nz_data[k] * frame_z.z();
+    cosine = cosine < -1.0F ? -1.0F : (cosine > 1.0F ? 1.0F : cosine);
+
+    // Volume: azimuth octant (bits 4, 3 and the diagonal split), elevation (z > 0), radius.
+    const float bit4 = (y > 0.0F || (y == 0.0F && x < 0.0F)) ? 1.0F : 0.0F;
+    const float bit3 = (x > 0.0F || (x == 0.0F && y > 0.0F)) ? 1.0F - bit4 : bit4;
+    const float ax = std::abs(x);
+    const float ay = std::abs(y);
+    const float diagonal = (x * y > 0.0F || x == 0.0F) ? (ax < ay ? 1.0F : 0.0F) : (ax > ay ? 1.0F : 0.0F);
+    const float sector = 4.0F * bit4 + 2.0F * bit3 + diagonal;  // desc_index >> 2
+    const float outer = distance > radius_1_2 ? 1.0F : 0.0F;
+    const float volume = 4.0F * sector + (z > 0.0F ? 1.0F : 0.0F) + 2.0F * outer;
+
+    // Cosine bin (PCL createBinDistanceShape): (1 + cos) · bins / 2 in [0, bins]; ≥ 0, so
+    // truncation is PCL's floor(bin + 0.5).
+    const float bin = (1.0F + cosine) * (0.5F * kBins);
+    const auto step = static_cast<float>(static_cast<int>(bin + 0.5F));
+    const float own = volume * kStrideF + step;
+    // Adjacent cosine bin, circular over the 10 bins as in PCL: (s + 1) % 10 or (s − 1 + 10) % 10.
+    const float bin_distance = bin - step;
+    float weight = 1.0F - std::abs(bin_distance);
+    const float next = step + 1.0F >= kBins ? step + 1.0F - kBins : step + 1.0F;
+    const float previous = step + (kBins - 1.0F) >= kBins ? step - 1.0F : step + (kBins - 1.0F);
+    cosine_data[k] = volume * kStrideF + (bin_distance > 0.0F ? next : previous);
+    cosine_weight_data[k] = std::abs(bin_distance);
+
+    // Distance (adjacent radial shells at R/2): the outer shell votes inward below 3R/4, the
+    // inner one outward above R/4.
+    const float radius_distance = (distance - (outer > 0.0F ? radius_3_4 : radius_1_4)) * inverse_radius_1_2;
+    weight += 1.0F - std::abs(radius_distance);
+    const float radial_vote = (outer > 0.0F ? radius_distance <= 0.0F : radius_distance >= 0.0F) ? 1.0F : 0.0F;
+    radial_data[k] = own + radial_vote * (2.0F * kStrideF - 4.0F * kStrideF * outer);
+    radial_weight_data[k] = radial_vote * std::abs(radius_distance);
+
+    // Inclination (adjacent elevation volumes at 90°): the lower one votes up below 135°, the
+    // upper one down above 45°. Arc cosine as detail::fast_acos.
+    float c = z / distance;
+    c = c < -1.0F ? -1.0F : (c > 1.0F ? 1.0F : c);
+    const float ac = std::abs(c);
+    const float poly =
+        1.5707963050F +
+        ac * (-0.2145988016F +
+              ac * (0.0889789874F +
+                    ac * (-0.0501743046F +
+                          ac * (0.0308918810F +
+                                ac * (-0.0170881256F + ac * (0.0066700901F + ac * -0.0012624911F))))));
+    const float arc = std::sqrt(1.0F - ac) * poly;
+    const float inclination = c >= 0.0F ? arc : kPif - arc;
+    const float lower = (inclination > kRad90f || (inclination == kRad90f && z <= 0.0F)) ? 1.0F : 0.0F;
+    const float inclination_distance = (inclination - (lower > 0.0F ? kRad135f : kRad45f)) * kInverseRad90;
+    weight += 1.0F - std::abs(inclination_distance);
+    const float elevation_vote = (lower > 0.0F ? inclination_distance <= 0.0F : inclination_distance >= 0.0F) ? 1.0F : 0.0F;
+    elevation_data[k] = own + elevation_vote * (2.0F * kStrideF * lower - kStrideF);
+    elevation_weight_data[k] = elevation_vote * std::abs(inclination_distance);
+
+    // Azimuth (adjacent sectors, circular); undefined on the LRF's z axis. Arc tangent as
+    // detail::fast_atan2.
+    const float defined = (y != 0.0F || x != 0.0F) ? 1.0F : 0.0F;
+    const float big = ax > ay ? ax : ay;
+    const float t = (ax > ay ? ay : ax) / (defined > 0.0F ? big : 1.0F);
+    const float t2 = t * t;
+    float azimuth = t * (0.99997726F +
+                         t2 * (-0.33262347F +
+                               t2 * (0.19354346F +
+                                     t2 * (-0.11643287F + t2 * (0.05265332F + t2 * -0.01172120F)))));
+    azimuth = ay > ax ? 0.5F * kPif - azimuth : azimuth;
+    azimuth = x < 0.0F ? kPif - azimuth : azimuth;
+    azimuth = y < 0.0F ? -azimuth : azimuth;
+    float azimuth_distance = (azimuth - (-kRadPi78f + kRad45f * sector)) * kInverseRad45;
+    azimuth_distance = azimuth_distance < -0.5F ? -0.5F : (azimuth_distance > 0.5F ? 0.5F : azimuth_distance);
+    weight += defined * (1.0F - std::abs(azimuth_distance));
+    float adjacent = volume + (azimuth_distance > 0.0F ? 4.0F : kVolumesF - 4.0F);
+    adjacent = adjacent >= kVolumesF ? adjacent - kVolumesF : adjacent;
+    azimuth_data[k] = adjacent * kStrideF + step;
+    azimuth_weight_data[k] = defined * std::abs(azimuth_distance);
+
+    own_data[k] = own;
+    own_weight_data[k] = weight;
+  }
+
+}
+
+#ifdef RANKSLAM_GEOMETRY_HAVE_AVX2_SHOT
+// Helpers of the AVX2 kernel (inlined into it).
+#define RANKSLAM_AVX2_INLINE __attribute__((target("avx2"), always_inline)) inline
+RANKSLAM_AVX2_INLINE __m256 avx_abs(__m256 a) { return _mm256_andnot_ps(_mm256_set1_ps(-0.0F), a); }
+RANKSLAM_AVX2_INLINE __m256 avx_clamp(__m256 a, float lo, float hi) {
+  return _mm256_min_ps(_mm256_max_ps(a, _mm256_set1_ps(lo)), _mm256_set1_ps(hi));
+}
+/// mask ? a : b, lane-wise.
+RANKSLAM_AVX2_INLINE __m256 avx_select(__m256 mask, __m256 a, __m256 b) { return _mm256_blendv_ps(b, a, mask); }
+RANKSLAM_AVX2_INLINE __m256 avx_dot(__m256 a, __m256 b, __m256 c, const Eigen::Vector3f& axis) {
+  return _mm256_add_ps(_mm256_add_ps(_mm256_mul_ps(a, _mm256_set1_ps(axis.x())), _mm256_mul_ps(b, _mm256_set1_ps(axis.y()))),
+                       _mm256_mul_ps(c, _mm256_set1_ps(axis.z())));
+}
+#undef RANKSLAM_AVX2_INLINE
+
+// vote_bins_portable, 8 neighbours at a time (AVX2, chosen at run time; no FMA, so that every
+// product rounds as in the portable version).
+__attribute__((target("avx2"))) void vote_bins_avx2(const VoteArrays& v, const VoteFrame& f, int end) {
+  const __m256 zero = _mm256_setzero_ps();
+  const __m256 one = _mm256_set1_ps(1.0F);
+  constexpr auto kStrideF = static_cast<float>(kStride);
+  constexpr auto kBins = static_cast<float>(kShotCosineBins);
+  constexpr auto kVolumesF = static_cast<float>(kShotVolumes);
+  constexpr auto kPif = static_cast<float>(detail::kPi);
+  constexpr auto kRad45f = static_cast<float>(kRad45);
+  constexpr auto kRad90f = static_cast<float>(kRad90);
+  constexpr auto kRad135f = static_cast<float>(kRad135);
+  constexpr auto kRadPi78f = static_cast<float>(kRadPi78);
+  const __m256 r14 = _mm256_set1_ps(f.radius_1_4);
+  const __m256 r12 = _mm256_set1_ps(f.radius_1_2);
+  const __m256 r34 = _mm256_set1_ps(f.radius_3_4);
+  const __m256 inverse_r12 = _mm256_set1_ps(1.0F / f.radius_1_2);
+  for (int k = 0; k < end; k += 8) {
+    const __m256 dx = _mm256_loadu_ps(v.dx + k);
+    const __m256 dy = _mm256_loadu_ps(v.dy + k);
+    const __m256 dz = _mm256_loadu_ps(v.dz + k);
+    const __m256 distance = _mm256_loadu_ps(v.distance + k);
+    const __m256 x = avx_dot(dx, dy, dz, f.x);
+    const __m256 y = avx_dot(dx, dy, dz, f.y);
+    const __m256 z = avx_dot(dx, dy, dz, f.z);
+    const __m256 cosine = avx_clamp(avx_dot(_mm256_loadu_ps(v.nx + k), _mm256_loadu_ps(v.ny + k),
+                                    _mm256_loadu_ps(v.nz + k), f.z), -1.0F, 1.0F);
+
+    // Volume.
+    const __m256 y_positive = _mm256_cmp_ps(y, zero, _CMP_GT_OQ);
+    const __m256 x_zero = _mm256_cmp_ps(x, zero, _CMP_EQ_OQ);
+    const __m256 bit4 = _mm256_and_ps(
+        one, _mm256_or_ps(y_positive, _mm256_and_ps(_mm256_cmp_ps(y, zero, _CMP_EQ_OQ),
+                                                    _mm256_cmp_ps(x, zero, _CMP_LT_OQ))));
+    const __m256 flip =
+        _mm256_or_ps(_mm256_cmp_ps(x, zero, _CMP_GT_OQ), _mm256_and_ps(x_zero, y_positive));
+    const __m256 bit3 = avx_select(flip, _mm256_sub_ps(one, bit4), bit4);
+    const __m256 ax = avx_abs(x);
+    const __m256 ay = avx_abs(y);
+    const __m256 same_sign = _mm256_or_ps(_mm256_cmp_ps(_mm256_mul_ps(x, y), zero, _CMP_GT_OQ), x_zero);
+    const __m256 diagonal = avx_select(same_sign, _mm256_and_ps(one, _mm256_cmp_ps(ax, ay, _CMP_LT_OQ)),
+                                   _mm256_and_ps(one, _mm256_cmp_ps(ax, ay, _CMP_GT_OQ)));
+    const __m256 sector = _mm256_add_ps(_mm256_add_ps(_mm256_mul_ps(_mm256_set1_ps(4.0F), bit4), _mm256_mul_ps(_mm256_set1_ps(2.0F), bit3)), diagonal);
+    const __m256 outer = _mm256_cmp_ps(distance, r12, _CMP_GT_OQ);
+    const __m256 volume =
+        _mm256_add_ps(_mm256_add_ps(_mm256_mul_ps(_mm256_set1_ps(4.0F), sector), _mm256_and_ps(one, _mm256_cmp_ps(z, zero, _CMP_GT_OQ))),
+            _mm256_and_ps(_mm256_set1_ps(2.0F), outer));
+
+    // Cosine bin.
+    const __m256 bin = _mm256_mul_ps(_mm256_add_ps(one, cosine), _mm256_set1_ps(0.5F * kBins));
+    const __m256 step = _mm256_cvtepi32_ps(_mm256_cvttps_epi32(_mm256_add_ps(bin, _mm256_set1_ps(0.5F))));
+    const __m256 volume_base = _mm256_mul_ps(volume, _mm256_set1_ps(kStrideF));
+    const __m256 own = _mm256_add_ps(volume_base, step);
+    const __m256 bin_distance = _mm256_sub_ps(bin, step);
+    __m256 weight = _mm256_sub_ps(one, avx_abs(bin_distance));
+    const __m256 next_raw = _mm256_add_ps(step, one);
+    const __m256 next = _mm256_sub_ps(next_raw, _mm256_and_ps(_mm256_set1_ps(kBins), _mm256_cmp_ps(next_raw, _mm256_set1_ps(kBins), _CMP_GE_OQ)));
+    const __m256 previous_raw = _mm256_add_ps(step, _mm256_set1_ps(kBins - 1.0F));
+    const __m256 previous =
+        _mm256_sub_ps(previous_raw, _mm256_and_ps(_mm256_set1_ps(kBins), _mm256_cmp_ps(previous_raw, _mm256_set1_ps(kBins), _CMP_GE_OQ)));
+    _mm256_storeu_ps(v.cosine + k,
+                     _mm256_add_ps(volume_base, avx_select(_mm256_cmp_ps(bin_distance, zero, _CMP_GT_OQ), next, previous)));
+    _mm256_storeu_ps(v.cosine_weight + k, avx_abs(bin_distance));
+
+    // Radial shell.
+    const __m256 radius_distance = _mm256_mul_ps(_mm256_sub_ps(distance, avx_select(outer, r34, r14)), inverse_r12);
+    weight = _mm256_add_ps(weight, _mm256_sub_ps(one, avx_abs(radius_distance)));
+    const __m256 radial_vote = avx_select(outer, _mm256_cmp_ps(radius_distance, zero, _CMP_LE_OQ),
+                                      _mm256_cmp_ps(radius_distance, zero, _CMP_GE_OQ));
+    _mm256_storeu_ps(v.radial + k,
+                     _mm256_add_ps(own, _mm256_and_ps(radial_vote, avx_select(outer, _mm256_set1_ps(-2.0F * kStrideF), _mm256_set1_ps(2.0F * kStrideF)))));
+    _mm256_storeu_ps(v.radial_weight + k, _mm256_and_ps(radial_vote, avx_abs(radius_distance)));
+
+    // Elevation.
+    const __m256 c = avx_clamp(_mm256_div_ps(z, distance), -1.0F, 1.0F);
+    const __m256 ac = avx_abs(c);
+    __m256 poly = _mm256_set1_ps(-0.0012624911F);
+    for (const float coefficient : {0.0066700901F, -0.0170881256F, 0.0308918810F, -0.0501743046F,
+                                    0.0889789874F, -0.2145988016F, 1.5707963050F}) {
+      poly = _mm256_add_ps(_mm256_set1_ps(coefficient), _mm256_mul_ps(ac, poly));
+    }
+    const __m256 arc = _mm256_mul_ps(_mm256_sqrt_ps(_mm256_sub_ps(one, ac)), poly);
+    const __m256 inclination = avx_select(_mm256_cmp_ps(c, zero, _CMP_GE_OQ), arc, _mm256_sub_ps(_mm256_set1_ps(kPif), arc));
+    const __m256 lower = _mm256_or_ps(
+        _mm256_cmp_ps(inclination, _mm256_set1_ps(kRad90f), _CMP_GT_OQ),
+        _mm256_and_ps(_mm256_cmp_ps(inclination, _mm256_set1_ps(kRad90f), _CMP_EQ_OQ), _mm256_cmp_ps(z, zero, _CMP_LE_OQ)));
+    const __m256 inclination_distance =
+        _mm256_mul_ps(_mm256_sub_ps(inclination, avx_select(lower, _mm256_set1_ps(kRad135f), _mm256_set1_ps(kRad45f))), _mm256_set1_ps(1.0F / kRad90f));
+    weight = _mm256_add_ps(weight, _mm256_sub_ps(one, avx_abs(inclination_distance)));
+    const __m256 elevation_vote = avx_select(lower, _mm256_cmp_ps(inclination_distance, zero, _CMP_LE_OQ),
+                                         _mm256_cmp_ps(inclination_distance, zero, _CMP_GE_OQ));
+    _mm256_storeu_ps(v.elevation + k,
+                     _mm256_add_ps(own, _mm256_and_ps(elevation_vote, avx_select(lower, _mm256_set1_ps(kStrideF), _mm256_set1_ps(-kStrideF)))));
+    _mm256_storeu_ps(v.elevation_weight + k, _mm256_and_ps(elevation_vote, avx_abs(inclination_distance)));
+
+    // Azimuth.
+    const __m256 defined = _mm256_or_ps(_mm256_cmp_ps(y, zero, _CMP_NEQ_UQ), _mm256_cmp_ps(x, zero, _CMP_NEQ_UQ));
+    const __m256 t = _mm256_div_ps(_mm256_min_ps(ax, ay), avx_select(defined, _mm256_max_ps(ax, ay), one));
+    const __m256 t2 = _mm256_mul_ps(t, t);
+    __m256 series = _mm256_set1_ps(-0.01172120F);
+    for (const float coefficient : {0.05265332F, -0.11643287F, 0.19354346F, -0.33262347F, 0.99997726F}) {
+      series = _mm256_add_ps(_mm256_set1_ps(coefficient), _mm256_mul_ps(t2, series));
+    }
+    __m256 azimuth = _mm256_mul_ps(t, series);
+    azimuth = avx_select(_mm256_cmp_ps(ay, ax, _CMP_GT_OQ), _mm256_sub_ps(_mm256_set1_ps(0.5F * kPif), azimuth), azimuth);
+    azimuth = avx_select(_mm256_cmp_ps(x, zero, _CMP_LT_OQ), _mm256_sub_ps(_mm256_set1_ps(kPif), azimuth), azimuth);
+    azimuth = avx_select(_mm256_cmp_ps(y, zero, _CMP_LT_OQ), _mm256_sub_ps(zero, azimuth), azimuth);
+    const __m256 azimuth_distance = avx_clamp(
+        _mm256_mul_ps(_mm256_sub_ps(azimuth, _mm256_add_ps(_mm256_set1_ps(-kRadPi78f), _mm256_mul_ps(_mm256_set1_ps(kRad45f), sector))), _mm256_set1_ps(1.0F / kRad45f)), -0.5F, 0.5F);
+    weight = _mm256_add_ps(weight, _mm256_and_ps(defined, _mm256_sub_ps(one, avx_abs(azimuth_distance))));
+    __m256 adjacent = _mm256_add_ps(volume, avx_select(_mm256_cmp_ps(azimuth_distance, zero, _CMP_GT_OQ), _mm256_set1_ps(4.0F),
+                                         _mm256_set1_ps(kVolumesF - 4.0F)));
+    adjacent = _mm256_sub_ps(adjacent, _mm256_and_ps(_mm256_set1_ps(kVolumesF), _mm256_cmp_ps(adjacent, _mm256_set1_ps(kVolumesF), _CMP_GE_OQ)));
+    _mm256_storeu_ps(v.azimuth + k, _mm256_add_ps(_mm256_mul_ps(adjacent, _mm256_set1_ps(kStrideF)), step));
+    _mm256_storeu_ps(v.azimuth_weight + k, _mm256_and_ps(defined, avx_abs(azimuth_distance)));
+
+    _mm256_storeu_ps(v.own + k, own);
+    _mm256_storeu_ps(v.own_weight + k, weight);
+  }
+}
+#endif
 }  // namespace
+
+bool ShotEstimator::cpu_has_avx2() {
+#ifdef RANKSLAM_GEOMETRY_HAVE_AVX2_SHOT
+  static const bool has = __builtin_cpu_supports("avx2");
+  return has;
+#else
+  return false;
+#endif
+}
 
 void ShotEstimator::reserve(int max_support) {
   capacity_ = std::max(0, max_support);
-  indices_.assign(static_cast<std::size_t>(capacity_), 0);
-  squared_distances_.assign(static_cast<std::size_t>(capacity_), 0.0F);
-  deltas_.assign(static_cast<std::size_t>(capacity_), Eigen::Vector3f::Zero());
+  const auto padded = static_cast<std::size_t>(capacity_ + kLanes);
+  for (std::vector<float>* v : {&dx_, &dy_, &dz_, &d2_, &nx_, &ny_, &nz_, &distance_, &own_,
+                                &own_weight_, &cosine_, &cosine_weight_, &radial_, &radial_weight_,
+                                &elevation_, &elevation_weight_, &azimuth_, &azimuth_weight_}) {
+    v->assign(padded, 0.0F);
+  }
   sorted_.assign(static_cast<std::size_t>(capacity_), {0.0F, 0});
   count_ = 0;
 }
 
 bool ShotEstimator::local_reference_frame(float radius_m, Eigen::Matrix3f& rf) {
   // Weighted covariance about the keypoint, weight R − d (Tombari et al. 2010, eq. 3); the
-  // keypoint itself (d = 0) is left out as in PCL.
-  float c00 = 0.0F, c01 = 0.0F, c02 = 0.0F, c11 = 0.0F, c12 = 0.0F, c22 = 0.0F;
-  float weight_sum = 0.0F;
-  int valid = 0;
-  for (int k = 0; k < count_; ++k) {
-    const float d2 = squared_distances_[static_cast<std::size_t>(k)];
-    if (d2 == 0.0F) continue;
-    const Eigen::Vector3f& d = deltas_[static_cast<std::size_t>(k)];
-    const float w = radius_m - std::sqrt(d2);
-    c00 += w * d.x() * d.x();
-    c01 += w * d.x() * d.y();
-    c02 += w * d.x() * d.z();
-    c11 += w * d.y() * d.y();
-    c12 += w * d.y() * d.z();
-    c22 += w * d.z() * d.z();
-    weight_sum += w;
-    ++valid;
+  // keypoint itself (d = 0) is not in the support arrays, as in PCL. The padding lanes past
+  // count_ have d = R: weight 0.
+  Lanes c00 = Lanes::Zero(), c01 = Lanes::Zero(), c02 = Lanes::Zero(), c11 = Lanes::Zero(),
+        c12 = Lanes::Zero(), c22 = Lanes::Zero(), weights = Lanes::Zero();
+  for (int k = 0; k < count_; k += kLanes) {
+    const ConstLaneMap x(dx_.data() + k), y(dy_.data() + k), z(dz_.data() + k);
+    const Lanes w = radius_m - ConstLaneMap(distance_.data() + k);
+    const Lanes wx = w * x;
+    const Lanes wy = w * y;
+    c00 += wx * x;
+    c01 += wx * y;
+    c02 += wx * z;
+    c11 += wy * y;
+    c12 += wy * z;
+    c22 += w * z * z;
+    weights += w;
   }
+  const int valid = count_;
+  const float weight_sum = weights.sum();
   if (valid < 5 || !(weight_sum > 0.0F)) return false;
   Eigen::Matrix3d cov;
-  cov << c00, c01, c02, c01, c11, c12, c02, c12, c22;
+  const double s00 = c00.sum(), s01 = c01.sum(), s02 = c02.sum(), s11 = c11.sum(),
+               s12 = c12.sum(), s22 = c22.sum();
+  cov << s00, s01, s02, s01, s11, s12, s02, s12, s22;
   cov /= static_cast<double>(weight_sum);
   Eigen::SelfAdjointEigenSolver<Eigen::Matrix3d> solver;
   solver.computeDirect(cov);
@@ -62,23 +375,22 @@ bool ShotEstimator::local_reference_frame(float radius_m, Eigen::Matrix3f& rf) {
   Eigen::Vector3f z_axis = solver.eigenvectors().col(0).cast<float>();  // smallest spread
 
   // Sign disambiguation: each axis points toward the majority of the support points.
-  int plus_x = 0;
-  int plus_z = 0;
-  for (int k = 0; k < count_; ++k) {
-    if (squared_distances_[static_cast<std::size_t>(k)] == 0.0F) continue;
-    const Eigen::Vector3f& d = deltas_[static_cast<std::size_t>(k)];
-    plus_x += d.dot(x_axis) >= 0.0F ? 1 : 0;
-    plus_z += d.dot(z_axis) >= 0.0F ? 1 : 0;
+  Lanes votes_x = Lanes::Zero();
+  Lanes votes_z = Lanes::Zero();
+  const Lanes lane_index = Lanes::LinSpaced(0.0F, static_cast<float>(kLanes - 1));
+  for (int k = 0; k < count_; k += kLanes) {
+    const ConstLaneMap x(dx_.data() + k), y(dy_.data() + k), z(dz_.data() + k);
+    const Lanes in_support = (lane_index < static_cast<float>(count_ - k)).cast<float>();
+    votes_x += ((x * x_axis.x() + y * x_axis.y() + z * x_axis.z()) >= 0.0F).cast<float>() * in_support;
+    votes_z += ((x * z_axis.x() + y * z_axis.y() + z * z_axis.z()) >= 0.0F).cast<float>() * in_support;
   }
-  plus_x = 2 * plus_x - valid;
-  plus_z = 2 * plus_z - valid;
+  const int plus_x = 2 * static_cast<int>(votes_x.sum()) - valid;
+  const int plus_z = 2 * static_cast<int>(votes_z.sum()) - valid;
   if (plus_x == 0 || plus_z == 0) {
     // A tie: decide on the 5 neighbours around the median distance (PCL's rule).
-    int n = 0;
-    for (int k = 0; k < count_; ++k) {
-      const float d2 = squared_distances_[static_cast<std::size_t>(k)];
-      if (d2 == 0.0F) continue;
-      sorted_[static_cast<std::size_t>(n++)] = {d2, k};
+    const int n = count_;
+    for (int k = 0; k < n; ++k) {
+      sorted_[static_cast<std::size_t>(k)] = {d2_[static_cast<std::size_t>(k)], k};
     }
     std::sort(sorted_.begin(), sorted_.begin() + n, [](const auto& a, const auto& b) {
       return a.first < b.first || (a.first == b.first && a.second < b.second);
@@ -87,8 +399,8 @@ bool ShotEstimator::local_reference_frame(float radius_m, Eigen::Matrix3f& rf) {
     const auto tie_break = [&](Eigen::Vector3f& axis) {
       int votes = 0;
       for (int i = -kTieBreakPoints / 2; i <= kTieBreakPoints / 2; ++i) {
-        const int k = sorted_[static_cast<std::size_t>(median - i)].second;
-        votes += deltas_[static_cast<std::size_t>(k)].dot(axis) > 0.0F ? 1 : 0;
+        const auto k = static_cast<std::size_t>(sorted_[static_cast<std::size_t>(median - i)].second);
+        votes += Eigen::Vector3f(dx_[k], dy_[k], dz_[k]).dot(axis) > 0.0F ? 1 : 0;
       }
       if (votes < kTieBreakPoints / 2 + 1) axis = -axis;
     };
@@ -110,19 +422,35 @@ ShotResult ShotEstimator::compute(const Eigen::Vector3f& center,
                                   Eigen::Matrix3f* lrf) {
   std::fill(descriptor, descriptor + kShotSize, 0.0F);
   count_ = 0;
-  bool overflow = false;
+  int support = 0;  // the keypoint itself included, as PCL counts it
   grid.for_each_in_radius(center, radius_m, [&](int index, float d2) {
-    if (count_ == capacity_) {
-      overflow = true;
-      return;
-    }
-    indices_[static_cast<std::size_t>(count_)] = index;
-    squared_distances_[static_cast<std::size_t>(count_)] = d2;
-    deltas_[static_cast<std::size_t>(count_)] = points[static_cast<std::size_t>(index)] - center;
-    ++count_;
+    ++support;
+    // The keypoint (and any point on it) has no direction: neither the LRF nor the histogram
+    // takes it (PCL skips it in both).
+    if (d2 == 0.0F || count_ == capacity_) return;  // capacity: the whole cloud when reserved for it
+    const auto k = static_cast<std::size_t>(count_++);
+    const auto i = static_cast<std::size_t>(index);
+    const Eigen::Vector3f d = points[i] - center;
+    dx_[k] = d.x();
+    dy_[k] = d.y();
+    dz_[k] = d.z();
+    d2_[k] = d2;
+    nx_[k] = normals[i].x();
+    ny_[k] = normals[i].y();
+    nz_[k] = normals[i].z();
   });
-  (void)overflow;  // capacity is the whole cloud: cannot happen when reserved for it
-  if (count_ < std::max(min_neighbours, 1)) return ShotResult::kTooFewNeighbours;
+  if (support < std::max(min_neighbours, 1)) return ShotResult::kTooFewNeighbours;
+  // Padding up to a whole block: at the keypoint with distance R, so weight R − d = 0 in the LRF.
+  const int padded_end = (count_ + kLanes - 1) / kLanes * kLanes;
+  for (int k = count_; k < padded_end; ++k) {
+    const auto i = static_cast<std::size_t>(k);
+    dx_[i] = dy_[i] = dz_[i] = 0.0F;
+    nx_[i] = ny_[i] = nz_[i] = 0.0F;
+    d2_[i] = radius_m * radius_m;
+  }
+  for (int k = 0; k < padded_end; k += kLanes) {
+    LaneMap(distance_.data() + k) = ConstLaneMap(d2_.data() + k).sqrt();
+  }
   Eigen::Matrix3f rf;
   if (!local_reference_frame(radius_m, rf)) return ShotResult::kTooFewNeighbours;
   if (lrf != nullptr) *lrf = rf;
@@ -132,87 +460,40 @@ ShotResult ShotEstimator::compute(const Eigen::Vector3f& center,
   const float radius_1_4 = radius_m / 4.0F;
   const float radius_1_2 = radius_m / 2.0F;
   const float radius_3_4 = radius_m * 3.0F / 4.0F;
-  constexpr auto kRad45f = static_cast<float>(kRad45);
-  constexpr auto kRad90f = static_cast<float>(kRad90);
-  constexpr auto kRad135f = static_cast<float>(kRad135);
-  constexpr auto kRadPi78f = static_cast<float>(kRadPi78);
-  constexpr float kInverseRad45 = 1.0F / kRad45f;
-  constexpr float kInverseRad90 = 1.0F / kRad90f;
-  // PCL's circular neighbours of cosine bin s ∈ [0, 10] over 10 bins: (s + 1) % 10, (s − 1 + 10) % 10.
-  constexpr std::array<int, kShotCosineBins + 1> kNextBin = {1, 2, 3, 4, 5, 6, 7, 8, 9, 0, 1};
-  constexpr std::array<int, kShotCosineBins + 1> kPreviousBin = {9, 0, 1, 2, 3, 4, 5, 6, 7, 8, 9};
-
   // Float throughout: PCL computes in double, but the votes go into float bins and the results
   // agree to a cosine similarity above 0.9999 (test/unit/geometry, shot_pcl_test).
+  //
+  // Every neighbour casts five weighted votes: its own volume and cosine bin, and the adjacent
+  // cosine bin, radial shell, elevation volume and azimuth sector (quadrilinear interpolation).
+  // Their bins and weights are computed a block of neighbours at a time, without branches (PCL's
+  // branches, as selects: a neighbour that PCL does not let vote for an adjacent volume votes 0
+  // into its own bin instead); only the scattered additions stay one neighbour at a time, 8
+  // neighbours at a time with AVX2 where the CPU has it.
+  const VoteArrays arrays{dx_.data(), dy_.data(), dz_.data(), nx_.data(), ny_.data(), nz_.data(),
+                          distance_.data(), own_.data(), own_weight_.data(), cosine_.data(),
+                          cosine_weight_.data(), radial_.data(), radial_weight_.data(),
+                          elevation_.data(), elevation_weight_.data(), azimuth_.data(),
+                          azimuth_weight_.data()};
+  const VoteFrame vote_frame{frame_x, frame_y, frame_z, radius_1_4, radius_1_2, radius_3_4};
+#ifdef RANKSLAM_GEOMETRY_HAVE_AVX2_SHOT
+  if (best_kernel_ && cpu_has_avx2()) {
+    vote_bins_avx2(arrays, vote_frame, padded_end);
+  } else {
+    vote_bins_portable(arrays, vote_frame, padded_end);
+  }
+#else
+  vote_bins_portable(arrays, vote_frame, padded_end);
+#endif
+
+  // The scattered votes, one neighbour at a time (bins as exact small integers in floats).
   for (int k = 0; k < count_; ++k) {
-    const int index = indices_[static_cast<std::size_t>(k)];
-    const float distance = std::sqrt(squared_distances_[static_cast<std::size_t>(k)]);
-    if (distance < 1e-15F) continue;  // the keypoint itself
-    // Cosine bin (PCL createBinDistanceShape): (1 + cos) · bins / 2 in [0, bins].
-    const float cosine =
-        std::clamp(normals[static_cast<std::size_t>(index)].dot(frame_z), -1.0F, 1.0F);
-    float bin_distance = (1.0F + cosine) * (0.5F * static_cast<float>(kShotCosineBins));
-
-    const Eigen::Vector3f& delta = deltas_[static_cast<std::size_t>(k)];
-    const float x = delta.dot(frame_x);
-    const float y = delta.dot(frame_y);
-    const float z = delta.dot(frame_z);
-
-    // Volume: azimuth octant (bits 4, 3 and the diagonal split), elevation (z > 0), radius.
-    const int bit4 = ((y > 0) || ((y == 0.0F) && (x < 0))) ? 1 : 0;
-    const int bit3 = ((x > 0) || ((x == 0.0F) && (y > 0))) ? 1 - bit4 : bit4;
-    int desc_index = ((bit4 << 3) + (bit3 << 2)) << 1;
-    if ((x * y > 0) || (x == 0.0F)) {
-      desc_index += (std::abs(x) >= std::abs(y)) ? 0 : 4;
-    } else {
-      desc_index += (std::abs(x) > std::abs(y)) ? 4 : 0;
-    }
-    desc_index += z > 0 ? 1 : 0;
-    const bool outer = distance > radius_1_2;
-    desc_index += outer ? 2 : 0;
-
-    // bin_distance ≥ 0: truncation is PCL's floor(bin_distance + 0.5).
-    const int step_index = static_cast<int>(bin_distance + 0.5F);
-    float* volume = descriptor + desc_index * kStride;
-
-    // Each interpolation below gives the own volume 1 − |d| and a neighbour |d|, or nothing when
-    // PCL's branch does not vote for a neighbour; written without branches (|d| goes to the own
-    // bin with weight 0 instead) because the branches are unpredictable and dominated the time.
-    // Cosine (adjacent bins, circular over the 10 bins as in PCL):
-    bin_distance -= static_cast<float>(step_index);
-    float weight = 1.0F - std::abs(bin_distance);
-    volume[bin_distance > 0 ? kNextBin[static_cast<std::size_t>(step_index)]
-                            : kPreviousBin[static_cast<std::size_t>(step_index)]] += std::abs(bin_distance);
-
-    // Distance (adjacent radial shells at R/2): the outer shell votes inward below 3R/4, the
-    // inner one outward above R/4.
-    const float radius_distance = (distance - (outer ? radius_3_4 : radius_1_4)) / radius_1_2;
-    weight += 1.0F - std::abs(radius_distance);
-    const bool radial_vote = outer ? radius_distance <= 0.0F : radius_distance >= 0.0F;
-    volume[(radial_vote ? (outer ? -2 : 2) * kStride : 0) + step_index] +=
-        radial_vote ? std::abs(radius_distance) : 0.0F;
-
-    // Inclination (adjacent elevation volumes at 90°): the lower one votes up below 135°, the
-    // upper one down above 45°.
-    const float inclination = detail::fast_acos(std::clamp(z / distance, -1.0F, 1.0F));
-    const bool lower = inclination > kRad90f || (inclination == kRad90f && z <= 0);
-    const float inclination_distance = (inclination - (lower ? kRad135f : kRad45f)) * kInverseRad90;
-    weight += 1.0F - std::abs(inclination_distance);
-    const bool elevation_vote = lower ? inclination_distance <= 0.0F : inclination_distance >= 0.0F;
-    volume[(elevation_vote ? (lower ? 1 : -1) * kStride : 0) + step_index] +=
-        elevation_vote ? std::abs(inclination_distance) : 0.0F;
-
-    // Azimuth (adjacent sectors, circular); undefined on the LRF's z axis.
-    if (y != 0.0F || x != 0.0F) {
-      const float azimuth = detail::fast_atan2(y, x);
-      const int sel = desc_index >> 2;
-      const float azimuth_distance = std::clamp(
-          (azimuth - (-kRadPi78f + kRad45f * static_cast<float>(sel))) * kInverseRad45, -0.5F, 0.5F);
-      weight += 1.0F - std::abs(azimuth_distance);
-      const int interp = (desc_index + (azimuth_distance > 0 ? 4 : kShotVolumes - 4)) & (kShotVolumes - 1);
-      descriptor[interp * kStride + step_index] += std::abs(azimuth_distance);
-    }
-    volume[step_index] += weight;
+    const auto n = static_cast<std::size_t>(k);
+    if (distance_[n] < 1e-15F) continue;
+    descriptor[static_cast<int>(cosine_[n])] += cosine_weight_[n];
+    descriptor[static_cast<int>(radial_[n])] += radial_weight_[n];
+    descriptor[static_cast<int>(elevation_[n])] += elevation_weight_[n];
+    descriptor[static_cast<int>(azimuth_[n])] += azimuth_weight_[n];
+    descriptor[static_cast<int>(own_[n])] += own_weight_[n];
   }
 
   double norm = 0.0;

@@ -37,10 +37,11 @@ class ShotTest : public ::testing::Test {
   // Descriptors of the keypoints over the given support; rows of kShotSize, NaN-free; results.
   std::vector<float> describe(const std::vector<Eigen::Vector3f>& points,
                               const std::vector<Eigen::Vector3f>& normals,
-                              std::vector<ShotResult>& results) const {
+                              std::vector<ShotResult>& results, bool best_kernel = true) const {
     PointGrid grid(static_cast<int>(points.size()));
     EXPECT_TRUE(grid.build(points, static_cast<float>(config_.shot_radius_m)));
     ShotEstimator shot(static_cast<int>(points.size()));
+    shot.use_best_kernel(best_kernel);
     std::vector<float> out(keypoints_.size() * kShotSize);
     results.clear();
     for (std::size_t k = 0; k < keypoints_.size(); ++k) {
@@ -112,6 +113,28 @@ TEST_F(ShotTest, TooFewNeighboursIsReported) {
   ShotEstimator shot(3);
   std::vector<float> d(kShotSize);
   EXPECT_EQ(shot.compute(few[0], few, up, grid, 0.1F, 5, d.data()), ShotResult::kTooFewNeighbours);
+}
+
+// The AVX2 kernel of the per-neighbour geometry (where the CPU has it) against the portable one
+// that other CPUs run: the same descriptors up to float rounding.
+TEST_F(ShotTest, PortableAndAvx2KernelsAgree) {
+  if (!ShotEstimator::cpu_has_avx2()) GTEST_SKIP() << "no AVX2: only the portable kernel runs here";
+  std::vector<ShotResult> best_results;
+  std::vector<ShotResult> portable_results;
+  const std::vector<float> best = describe(points_, normals_, best_results, true);
+  const std::vector<float> portable = describe(points_, normals_, portable_results, false);
+  ASSERT_EQ(best_results, portable_results);
+  double worst = 1.0;
+  for (std::size_t k = 0; k < keypoints_.size(); ++k) {
+    if (best_results[k] != ShotResult::kOk) continue;
+    double dot = 0.0;
+    for (int j = 0; j < kShotSize; ++j) {
+      dot += static_cast<double>(best[k * kShotSize + static_cast<std::size_t>(j)]) *
+             static_cast<double>(portable[k * kShotSize + static_cast<std::size_t>(j)]);
+    }
+    worst = std::min(worst, dot);
+  }
+  EXPECT_GE(worst, 0.99999);
 }
 
 }  // namespace

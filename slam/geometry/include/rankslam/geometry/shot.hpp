@@ -45,6 +45,13 @@ class ShotEstimator {
   /// Set-up (allocates): room for up to max_support support points per descriptor.
   void reserve(int max_support);
 
+  /// True (the default) uses the AVX2 kernel for the per-neighbour geometry when the CPU has it;
+  /// false always uses the portable one (both give the same descriptors up to rounding; tests
+  /// compare them).
+  void use_best_kernel(bool best) { best_kernel_ = best; }
+  /// True when this CPU can run the AVX2 kernel.
+  [[nodiscard]] static bool cpu_has_avx2();
+
   /// Per keypoint, no allocation: the SHOT of `center` over the support points (with unit
   /// normals) within radius_m, found through `grid` (built over `points`, any cell size; a cell
   /// near radius_m is fastest). Writes kShotSize values to `descriptor` and, when non-null, the
@@ -58,10 +65,20 @@ class ShotEstimator {
   bool local_reference_frame(float radius_m, Eigen::Matrix3f& rf);
 
   int capacity_ = 0;
-  int count_ = 0;
-  std::vector<int> indices_;
-  std::vector<float> squared_distances_;
-  std::vector<Eigen::Vector3f> deltas_;  // neighbour − keypoint
+  bool best_kernel_ = true;
+  int count_ = 0;  // support points other than the keypoint itself (distance > 0)
+  // The support as structure of arrays, padded to whole blocks of 8, so that the per-neighbour
+  // geometry (LRF coordinates, arc functions, the bins and weights of the votes) runs 8
+  // neighbours at a time (AVX2, chosen at run time); only the additions into the histogram,
+  // scattered by nature, stay one at a time. SHOT per frame on fr1_rpy_head (perf_geometry, about
+  // 300 support points per keypoint): 7.4 ms with one neighbour at a time and branches, 4.2 ms.
+  std::vector<float> dx_, dy_, dz_, d2_;  // neighbour − keypoint, squared distance
+  std::vector<float> nx_, ny_, nz_;       // neighbour normal
+  std::vector<float> distance_;
+  // Per neighbour, filled block-wise before the votes: the bins (as floats) and weights of its
+  // five votes (own volume, adjacent cosine bin, radial shell, elevation and azimuth volume).
+  std::vector<float> own_, own_weight_, cosine_, cosine_weight_, radial_, radial_weight_;
+  std::vector<float> elevation_, elevation_weight_, azimuth_, azimuth_weight_;
   std::vector<std::pair<float, int>> sorted_;  // tie-break scratch
 };
 
