@@ -43,11 +43,15 @@ inline bool any_lane(Bytes v) {
 /// v: the maximum over the 16 arcs of the arc's minimum, found with minima over 2, 4 and 8
 /// neighbours (64 minima instead of 128).
 inline Bytes best_arc_minimum(const Bytes (&difference)[16]) {
+  // Unrolled, the arrays live in registers instead of on the stack.
   Bytes over2[16];
   Bytes over4[16];
+#pragma GCC unroll 16
   for (int k = 0; k < 16; ++k) over2[k] = lane_min(difference[k], difference[(k + 1) & 15]);
+#pragma GCC unroll 16
   for (int k = 0; k < 16; ++k) over4[k] = lane_min(over2[k], over2[(k + 2) & 15]);
   Bytes best = broadcast(0);
+#pragma GCC unroll 16
   for (int k = 0; k < 16; ++k) {
     best = lane_max(best, lane_min(lane_min(over4[k], over4[(k + 4) & 15]), difference[(k + 8) & 15]));
   }
@@ -231,19 +235,25 @@ void OrbExtractor::build_level(std::size_t index) {
   const std::uint8_t* source = pyramid_.data() + above.offset;
   std::uint8_t* target = pyramid_.data() + level.offset;
   std::uint16_t* row = row_.data();
+  // Raw pointers: the byte stores below may alias anything, so a vector's members would be
+  // reloaded on every pixel.
+  const std::int32_t* source_x = level.source_x.data();
+  const std::uint16_t* weight_x = level.weight_x.data();
+  const std::ptrdiff_t stride = stride_;
   for (int y = 0; y < level.height; ++y) {
-    const std::uint8_t* top = source + static_cast<std::ptrdiff_t>(level.source_y[static_cast<std::size_t>(y)]) * stride_;
-    const std::uint8_t* bottom = top + stride_;
+    const std::uint8_t* top = source + static_cast<std::ptrdiff_t>(level.source_y[static_cast<std::size_t>(y)]) * stride;
+    const std::uint8_t* bottom = top + stride;
     const auto w_bottom = level.weight_y[static_cast<std::size_t>(y)];
     const auto w_top = static_cast<std::uint16_t>(256 - w_bottom);
     // Vertical first, over whole rows (vectorises); then horizontal through the column table.
     for (int x = 0; x < above.width; ++x) {
       row[x] = static_cast<std::uint16_t>(top[x] * w_top + bottom[x] * w_bottom);
     }
-    std::uint8_t* out = target + static_cast<std::ptrdiff_t>(y) * stride_;
-    for (int x = 0; x < level.width; ++x) {
-      const auto x0 = level.source_x[static_cast<std::size_t>(x)];
-      const std::uint32_t w_right = level.weight_x[static_cast<std::size_t>(x)];
+    std::uint8_t* out = target + static_cast<std::ptrdiff_t>(y) * stride;
+    const int width = level.width;
+    for (int x = 0; x < width; ++x) {
+      const auto x0 = source_x[x];
+      const std::uint32_t w_right = weight_x[x];
       const std::uint32_t value = row[x0] * (256U - w_right) + row[x0 + 1] * w_right;
       out[x] = static_cast<std::uint8_t>((value + 32768U) >> 16U);
     }
@@ -271,24 +281,32 @@ void OrbExtractor::detect(const Level& level) {
       const Bytes lanes = ~greater(broadcast(static_cast<std::uint8_t>(x - start)), lane_index);
       const std::uint8_t* p = row + start;
       const Bytes centre = load(p);
-      // A 9-pixel arc holds two neighbouring compass points: test those first.
-      const Bytes n = load(p + circle[0]);
-      const Bytes e = load(p + circle[4]);
-      const Bytes s = load(p + circle[8]);
-      const Bytes w = load(p + circle[12]);
-      const Bytes bn = greater(positive_difference(n, centre), threshold);
-      const Bytes be = greater(positive_difference(e, centre), threshold);
-      const Bytes bs = greater(positive_difference(s, centre), threshold);
-      const Bytes bw = greater(positive_difference(w, centre), threshold);
-      const Bytes dn = greater(positive_difference(centre, n), threshold);
-      const Bytes de = greater(positive_difference(centre, e), threshold);
-      const Bytes ds = greater(positive_difference(centre, s), threshold);
-      const Bytes dw = greater(positive_difference(centre, w), threshold);
+      // A 9-pixel arc holds two neighbouring compass points: test those first, against the
+      // saturated bounds centre ± threshold.
+      const Bytes high = centre + lane_min(threshold, ~centre);
+      const Bytes low = centre - lane_min(threshold, centre);
+      auto brighter_than_high = [&](const std::uint8_t* q) {
+        const Bytes c = load(q);
+        return reinterpret_cast<Bytes>(lane_max(c, high) != high);
+      };
+      auto darker_than_low = [&](const std::uint8_t* q) {
+        const Bytes c = load(q);
+        return reinterpret_cast<Bytes>(lane_min(c, low) != low);
+      };
+      const Bytes bn = brighter_than_high(p + circle[0]);
+      const Bytes be = brighter_than_high(p + circle[4]);
+      const Bytes bs = brighter_than_high(p + circle[8]);
+      const Bytes bw = brighter_than_high(p + circle[12]);
+      const Bytes dn = darker_than_low(p + circle[0]);
+      const Bytes de = darker_than_low(p + circle[4]);
+      const Bytes ds = darker_than_low(p + circle[8]);
+      const Bytes dw = darker_than_low(p + circle[12]);
       const Bytes possible = ((bn & be) | (be & bs) | (bs & bw) | (bw & bn) | (dn & de) | (de & ds) | (ds & dw) |
                               (dw & dn)) & lanes;
       if (!any_lane(possible)) continue;
       Bytes brighter[16];
       Bytes darker[16];
+#pragma GCC unroll 16
       for (int k = 0; k < 16; ++k) {
         const Bytes c = load(p + circle[k]);
         brighter[k] = positive_difference(c, centre);

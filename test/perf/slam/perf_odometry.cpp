@@ -10,7 +10,7 @@
 // timed; converting to what each method takes is (rankslam: BGR to grey inside its loop; OpenCV:
 // grey image and float depth in metres, converted per frame here). OpenCV's methods see the
 // pinhole intrinsics without the lens distortion (they have no distortion model).
-//   perf_odometry [benchmark flags]
+//   perf_odometry [benchmark flags] [--seed=N]   (N: SlamConfig::seed of the rankslam rows, default 1)
 
 #include "rankslam/eval/metrics.hpp"
 #include "rankslam/eval/trajectory.hpp"
@@ -25,6 +25,7 @@
 #include <chrono>
 #include <cstdio>
 #include <ctime>
+#include <exception>
 #include <filesystem>
 #include <map>
 #include <string>
@@ -103,6 +104,11 @@ struct Outcome {
   int failed = 0;
 };
 
+int& rankslam_seed() {
+  static int seed = slam::SlamConfig{}.seed;
+  return seed;
+}
+
 std::map<std::string, Outcome>& outcomes() {
   static std::map<std::string, Outcome> all;
   return all;
@@ -153,6 +159,7 @@ void rankslam_odometry(benchmark::State& state, slam::Mode mode,
   for (auto _ : state) {
     slam::SlamConfig config;
     config.mode = mode;
+    config.seed = rankslam_seed();
     config.orb_implementation = orb;
     slam::SlamLoop loop(config, s.calibration);
     hal::RgbdFrame frame;
@@ -238,8 +245,8 @@ void print_table() {
   const auto& all = outcomes();
   const auto reference = all.find("rankslam photometric");
   if (all.empty() || reference == all.end()) return;
-  std::printf("\nfr1_rpy_head, %zu frames, frame to frame (ratios: method / rankslam photometric)\n",
-              sequence().frames.size());
+  std::printf("\nfr1_rpy_head, %zu frames, frame to frame, rankslam seed %d (ratios: method / rankslam photometric)\n",
+              sequence().frames.size(), rankslam_seed());
   std::printf("%-30s %9s %12s %14s %7s %11s %10s\n", "method", "ATE [m]", "ms/frame", "CPU ms/frame", "failed",
               "ATE ratio", "time ratio");
   for (const auto& [name, outcome] : all) {
@@ -253,6 +260,16 @@ void print_table() {
 
 int main(int argc, char** argv) {
   benchmark::Initialize(&argc, argv);
+  // The one flag of its own: what is left after Google Benchmark took its flags.
+  if (argc == 2 && std::string(argv[1]).rfind("--seed=", 0) == 0) {
+    try {
+      rankslam_seed() = std::stoi(std::string(argv[1]).substr(7));
+    } catch (const std::exception&) {
+      std::fprintf(stderr, "perf_odometry: --seed wants an integer, got %s\n", argv[1]);
+      return 1;
+    }
+    argc = 1;
+  }
   if (benchmark::ReportUnrecognizedArguments(argc, argv)) return 1;
   if (!sequence().error.empty()) {
     std::printf("perf_odometry: skipped: %s\n", sequence().error.c_str());
