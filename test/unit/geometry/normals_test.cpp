@@ -139,5 +139,41 @@ TEST(Normals, AgreeWithDensePcaOnRealFrames) {
   }
 }
 
+// The AVX2 window sums (where the CPU has it) against the portable loop that other CPUs run:
+// the same normals up to float summation order.
+TEST(Normals, PortableAndAvx2WindowSumsAgree) {
+  if (!__builtin_cpu_supports("avx2")) GTEST_SKIP() << "no AVX2: only the portable loop runs here";
+  hal::Calibration calibration;
+  std::string error;
+  const auto frames = testing::simulated_depth_frames("office", 30, 1, true, calibration, error);
+  ASSERT_EQ(error, "");
+  ASSERT_EQ(frames.size(), 1U);
+  const slam::DepthCameraModel camera(calibration.rgb, calibration.depth_scale);
+  GeometryConfig config;
+  CloudPreprocessor preprocessor;
+  ASSERT_EQ(preprocessor.configure(camera, config, 16384), "");
+  SampledCloud cloud = preprocessor.make_cloud();
+  ASSERT_EQ(preprocessor.process(frames[0], cloud), GeometryStatus::kOk);
+  const auto fx = static_cast<float>(calibration.rgb.fx);
+  std::vector<double> difference;
+  for (int i = 0; i < cloud.size; ++i) {
+    const auto k = static_cast<std::size_t>(i);
+    Eigen::Vector3f best = Eigen::Vector3f::Zero();
+    Eigen::Vector3f portable = Eigen::Vector3f::Zero();
+    const int used_best = organised_normal(preprocessor.blocks(), fx, cloud.points[k], cloud.pixels[k],
+                                           cloud.normal_radius_m, config.normal_samples_per_axis, best,
+                                           nullptr, true);
+    const int used_portable = organised_normal(preprocessor.blocks(), fx, cloud.points[k], cloud.pixels[k],
+                                               cloud.normal_radius_m, config.normal_samples_per_axis,
+                                               portable, nullptr, false);
+    EXPECT_NEAR(used_best, used_portable, 1) << i;
+    difference.push_back(angle_deg(best.cast<double>(), portable.cast<double>()));
+  }
+  std::sort(difference.begin(), difference.end());
+  std::printf("AVX2 vs portable window sums: %zu normals, median %.2g°, max %.2g°\n", difference.size(),
+              difference[difference.size() / 2], difference.back());
+  EXPECT_LE(difference.back(), 0.1);
+}
+
 }  // namespace
 }  // namespace rankslam::geometry
