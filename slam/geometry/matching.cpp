@@ -100,7 +100,10 @@ __attribute__((target("avx2,fma"))) inline float horizontal_sum(__m256 v) {
   return _mm_cvtss_f32(s);
 }
 
-// 4 × 2 blocks: 8 accumulators, 4 rows of A and 2 of B in registers (14 of 16 ymm).
+// 4 × 3 blocks: 12 accumulators, 3 rows of B and one of A in registers (16 of 16 ymm), so that
+// each 8-float step loads 7 vectors for 12 FMAs (4 × 2 blocks: 6 loads for 8). Each dot
+// product is summed in the same order as before, so the matches are the same. Measured on
+// fr1_rpy_head (perf_geometry BM_MatchExhaustive, 400 × 400): 2.10 ms with 4 × 2 blocks, 1.46 ms.
 __attribute__((target("avx2,fma"))) void scan_avx2(const float* a, int na, const float* b,
                                                    int nb, int dim, Best& best) {
   const int vector_end = dim - dim % 8;
@@ -116,37 +119,47 @@ __attribute__((target("avx2,fma"))) void scan_avx2(const float* a, int na, const
     const float* a2 = a1 + dim;
     const float* a3 = a2 + dim;
     int j = 0;
-    for (; j + 1 < nb; j += 2) {
+    for (; j + 2 < nb; j += 3) {
       const float* b0 = b + static_cast<std::ptrdiff_t>(j) * dim;
       const float* b1 = b0 + dim;
-      __m256 s00 = _mm256_setzero_ps(), s01 = _mm256_setzero_ps();
-      __m256 s10 = _mm256_setzero_ps(), s11 = _mm256_setzero_ps();
-      __m256 s20 = _mm256_setzero_ps(), s21 = _mm256_setzero_ps();
-      __m256 s30 = _mm256_setzero_ps(), s31 = _mm256_setzero_ps();
+      const float* b2 = b1 + dim;
+      __m256 s00 = _mm256_setzero_ps(), s01 = _mm256_setzero_ps(), s02 = _mm256_setzero_ps();
+      __m256 s10 = _mm256_setzero_ps(), s11 = _mm256_setzero_ps(), s12 = _mm256_setzero_ps();
+      __m256 s20 = _mm256_setzero_ps(), s21 = _mm256_setzero_ps(), s22 = _mm256_setzero_ps();
+      __m256 s30 = _mm256_setzero_ps(), s31 = _mm256_setzero_ps(), s32 = _mm256_setzero_ps();
       for (int k = 0; k < vector_end; k += 8) {
         const __m256 y0 = _mm256_loadu_ps(b0 + k);
         const __m256 y1 = _mm256_loadu_ps(b1 + k);
-        const __m256 x0 = _mm256_loadu_ps(a0 + k);
-        s00 = _mm256_fmadd_ps(x0, y0, s00);
-        s01 = _mm256_fmadd_ps(x0, y1, s01);
-        const __m256 x1 = _mm256_loadu_ps(a1 + k);
-        s10 = _mm256_fmadd_ps(x1, y0, s10);
-        s11 = _mm256_fmadd_ps(x1, y1, s11);
-        const __m256 x2 = _mm256_loadu_ps(a2 + k);
-        s20 = _mm256_fmadd_ps(x2, y0, s20);
-        s21 = _mm256_fmadd_ps(x2, y1, s21);
-        const __m256 x3 = _mm256_loadu_ps(a3 + k);
-        s30 = _mm256_fmadd_ps(x3, y0, s30);
-        s31 = _mm256_fmadd_ps(x3, y1, s31);
+        const __m256 y2 = _mm256_loadu_ps(b2 + k);
+        __m256 x = _mm256_loadu_ps(a0 + k);
+        s00 = _mm256_fmadd_ps(x, y0, s00);
+        s01 = _mm256_fmadd_ps(x, y1, s01);
+        s02 = _mm256_fmadd_ps(x, y2, s02);
+        x = _mm256_loadu_ps(a1 + k);
+        s10 = _mm256_fmadd_ps(x, y0, s10);
+        s11 = _mm256_fmadd_ps(x, y1, s11);
+        s12 = _mm256_fmadd_ps(x, y2, s12);
+        x = _mm256_loadu_ps(a2 + k);
+        s20 = _mm256_fmadd_ps(x, y0, s20);
+        s21 = _mm256_fmadd_ps(x, y1, s21);
+        s22 = _mm256_fmadd_ps(x, y2, s22);
+        x = _mm256_loadu_ps(a3 + k);
+        s30 = _mm256_fmadd_ps(x, y0, s30);
+        s31 = _mm256_fmadd_ps(x, y1, s31);
+        s32 = _mm256_fmadd_ps(x, y2, s32);
       }
       update(best, i, j, horizontal_sum(s00) + dot(a0, b0, vector_end));
       update(best, i, j + 1, horizontal_sum(s01) + dot(a0, b1, vector_end));
+      update(best, i, j + 2, horizontal_sum(s02) + dot(a0, b2, vector_end));
       update(best, i + 1, j, horizontal_sum(s10) + dot(a1, b0, vector_end));
       update(best, i + 1, j + 1, horizontal_sum(s11) + dot(a1, b1, vector_end));
+      update(best, i + 1, j + 2, horizontal_sum(s12) + dot(a1, b2, vector_end));
       update(best, i + 2, j, horizontal_sum(s20) + dot(a2, b0, vector_end));
       update(best, i + 2, j + 1, horizontal_sum(s21) + dot(a2, b1, vector_end));
+      update(best, i + 2, j + 2, horizontal_sum(s22) + dot(a2, b2, vector_end));
       update(best, i + 3, j, horizontal_sum(s30) + dot(a3, b0, vector_end));
       update(best, i + 3, j + 1, horizontal_sum(s31) + dot(a3, b1, vector_end));
+      update(best, i + 3, j + 2, horizontal_sum(s32) + dot(a3, b2, vector_end));
     }
     for (; j < nb; ++j) {
       const float* b0 = b + static_cast<std::ptrdiff_t>(j) * dim;

@@ -375,17 +375,15 @@ bool ShotEstimator::local_reference_frame(float radius_m, Eigen::Matrix3f& rf) {
   Eigen::Vector3f z_axis = solver.eigenvectors().col(0).cast<float>();  // smallest spread
 
   // Sign disambiguation: each axis points toward the majority of the support points.
-  Lanes votes_x = Lanes::Zero();
-  Lanes votes_z = Lanes::Zero();
-  const Lanes lane_index = Lanes::LinSpaced(0.0F, static_cast<float>(kLanes - 1));
-  for (int k = 0; k < count_; k += kLanes) {
-    const ConstLaneMap x(dx_.data() + k), y(dy_.data() + k), z(dz_.data() + k);
-    const Lanes in_support = (lane_index < static_cast<float>(count_ - k)).cast<float>();
-    votes_x += ((x * x_axis.x() + y * x_axis.y() + z * x_axis.z()) >= 0.0F).cast<float>() * in_support;
-    votes_z += ((x * z_axis.x() + y * z_axis.y() + z * z_axis.z()) >= 0.0F).cast<float>() * in_support;
+  int votes_x = 0;
+  int votes_z = 0;
+  for (int k = 0; k < count_; ++k) {
+    const auto i = static_cast<std::size_t>(k);
+    votes_x += dx_[i] * x_axis.x() + dy_[i] * x_axis.y() + dz_[i] * x_axis.z() >= 0.0F ? 1 : 0;
+    votes_z += dx_[i] * z_axis.x() + dy_[i] * z_axis.y() + dz_[i] * z_axis.z() >= 0.0F ? 1 : 0;
   }
-  const int plus_x = 2 * static_cast<int>(votes_x.sum()) - valid;
-  const int plus_z = 2 * static_cast<int>(votes_z.sum()) - valid;
+  const int plus_x = 2 * votes_x - valid;
+  const int plus_z = 2 * votes_z - valid;
   if (plus_x == 0 || plus_z == 0) {
     // A tie: decide on the 5 neighbours around the median distance (PCL's rule).
     const int n = count_;

@@ -71,7 +71,8 @@ class ShotEstimator {
   // geometry (LRF coordinates, arc functions, the bins and weights of the votes) runs 8
   // neighbours at a time (AVX2, chosen at run time); only the additions into the histogram,
   // scattered by nature, stay one at a time. SHOT per frame on fr1_rpy_head (perf_geometry, about
-  // 300 support points per keypoint): 7.4 ms with one neighbour at a time and branches, 4.2 ms.
+  // 300 support points per keypoint): 7.4 ms with one neighbour at a time and branches, 4.0 ms
+  // so, 3.3 ms with the LRF's sign votes as a plain loop (Eigen's boolean-array casts are scalar).
   std::vector<float> dx_, dy_, dz_, d2_;  // neighbour − keypoint, squared distance
   std::vector<float> nx_, ny_, nz_;       // neighbour normal
   std::vector<float> distance_;
