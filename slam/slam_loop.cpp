@@ -85,6 +85,19 @@ Vector6d log_motion(const Eigen::Isometry3d& motion) {
   return xi;
 }
 
+// Adjoint of a pose on ξ = (rotation vector, translation): conjugating a small motion by T.
+Matrix6d adjoint_of(const Eigen::Isometry3d& T) {
+  const Eigen::Matrix3d R = T.rotation();
+  const Eigen::Vector3d t = T.translation();
+  Eigen::Matrix3d t_cross;
+  t_cross << 0.0, -t.z(), t.y(), t.z(), 0.0, -t.x(), -t.y(), t.x(), 0.0;
+  Matrix6d adjoint = Matrix6d::Zero();
+  adjoint.topLeftCorner<3, 3>() = R;
+  adjoint.bottomLeftCorner<3, 3>() = t_cross * R;
+  adjoint.bottomRightCorner<3, 3>() = R;
+  return adjoint;
+}
+
 double mahalanobis_sq(const Vector6d& residual, const Matrix6d& covariance) {
   const Eigen::LDLT<Matrix6d> factor(covariance);
   if (factor.info() != Eigen::Success) return std::numeric_limits<double>::infinity();
@@ -111,15 +124,7 @@ MotionPrior camera_motion_prior(double x_m, double y_m, double yaw_rad, const Ei
   base_jacobian(4, 1) = 1.0;
   base_jacobian(3, 2) = y_m;
   base_jacobian(4, 2) = -x_m;
-  const Eigen::Matrix3d R = T_cam_base.rotation();
-  Eigen::Matrix3d t_cross;
-  const Eigen::Vector3d t = T_cam_base.translation();
-  t_cross << 0.0, -t.z(), t.y(), t.z(), 0.0, -t.x(), -t.y(), t.x(), 0.0;
-  Matrix6d adjoint = Matrix6d::Zero();
-  adjoint.topLeftCorner<3, 3>() = R;
-  adjoint.bottomLeftCorner<3, 3>() = t_cross * R;
-  adjoint.bottomRightCorner<3, 3>() = R;
-  const Eigen::Matrix<double, 6, 3> jacobian = adjoint * base_jacobian;
+  const Eigen::Matrix<double, 6, 3> jacobian = adjoint_of(T_cam_base) * base_jacobian;
   prior.covariance = jacobian * planar_covariance * jacobian.transpose();
   return prior;
 }
@@ -631,6 +636,7 @@ FrameResult SlamLoop::process(const hal::RgbdFrame& frame, const MotionPrior* pr
 
 void SlamLoop::finish_frame(const hal::RgbdFrame& frame, bool have_depth, const Eigen::Isometry3d& T_world_previous,
                             const MotionPrior* prior, FrameResult& result) {
+  accumulate_wheel_motion(prior);
   if (!result.wheels.compared) {
     // The window sums consecutive compared frames only.
     wheel_window_size_ = 0;
@@ -721,12 +727,48 @@ void SlamLoop::store_keyframe(const hal::RgbdFrame& frame, bool have_depth, Fram
                                                          config_.graph_match_sigma_m);
       edge.kind = graph::EdgeKind::kSequential;
       (void)graph_.add_edge(edge);
+      add_wheel_edge(previous.node, keyframe.node);
     }
   }
+  wheel_since_keyframe_ = Eigen::Isometry3d::Identity();
+  wheel_since_keyframe_covariance_.setZero();
+  wheel_since_keyframe_valid_ = true;
   keyframe.path_m = path_m_;
   if (have_depth) add_keyframe_to_map(frame, result.T_world_cam, &keyframe);
   latest_keyframe_slot_ = slot;
   if (result.status == FrameStatus::kTracking && keyframe.node >= 0) close_loops(slot, result);
+}
+
+void SlamLoop::accumulate_wheel_motion(const MotionPrior* prior) {
+  if (prior == nullptr) {
+    wheel_since_keyframe_valid_ = false;
+    return;
+  }
+  // Both covariances are of a small motion applied on the left in the earlier frame:
+  // exp(ξ_a)·A · exp(ξ_b)·B = exp(ξ_a + Ad(A)·ξ_b)·A·B to first order.
+  const Matrix6d adjoint = adjoint_of(wheel_since_keyframe_);
+  wheel_since_keyframe_covariance_ += adjoint * prior->covariance * adjoint.transpose();
+  wheel_since_keyframe_ = rigid(wheel_since_keyframe_ * prior->T_previous_current);
+}
+
+void SlamLoop::add_wheel_edge(int from_node, int to_node) {
+  if (!wheel_since_keyframe_valid_ || config_.graph_wheel_floor_m <= 0.0) return;
+  // The graph's error sits on the right, in the later key-frame: Σ_right = Ad(T⁻¹)·Σ_left·Ad(T⁻¹)ᵀ.
+  // Motion a planar base cannot measure (roll, pitch, height) has no wheel variance; the floor
+  // keeps the information finite there.
+  const Matrix6d adjoint = adjoint_of(wheel_since_keyframe_.inverse());
+  Matrix6d covariance = adjoint * wheel_since_keyframe_covariance_ * adjoint.transpose();
+  const double floor_rad = config_.graph_wheel_floor_deg * M_PI / 180.0;
+  covariance.diagonal().head<3>().array() += floor_rad * floor_rad;
+  covariance.diagonal().tail<3>().array() += config_.graph_wheel_floor_m * config_.graph_wheel_floor_m;
+  graph::Edge edge;
+  edge.from = from_node;
+  edge.to = to_node;
+  edge.T_from_to = wheel_since_keyframe_;
+  edge.information = covariance.inverse();
+  edge.information = 0.5 * (edge.information + edge.information.transpose()).eval();
+  edge.kind = graph::EdgeKind::kWheels;
+  (void)graph_.add_edge(edge);
 }
 
 void SlamLoop::close_loops(int slot, FrameResult& result) {

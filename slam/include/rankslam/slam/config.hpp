@@ -191,6 +191,11 @@ struct SlamConfig {
   double graph_match_sigma_m = 0.02;
   double graph_match_sigma_deg = 1.0;
   int graph_iterations = 20;
+  // Wheel edges between consecutive key-frames (with a wheel prior on every frame between them):
+  // the wheel motion with its propagated covariance, plus this floor on the motion a planar base
+  // does not measure. 0 m: no wheel edges.
+  double graph_wheel_floor_m = 0.01;
+  double graph_wheel_floor_deg = 0.5;
   int seed = 1;
 
   /// The depth-only front-end of the geometric mode (ALGORITHMS.md §3–4); its own parameter list.
@@ -288,6 +293,9 @@ struct SlamConfig {
           "a closure's inliers must spread at least this far across their second axis");
     visit("graph_match_sigma_m", graph_match_sigma_m, 1e-6, 10.0, "m", "translation error of a registration on one match");
     visit("graph_match_sigma_deg", graph_match_sigma_deg, 1e-6, 180.0, "deg", "rotation error of a registration on one match");
+    visit("graph_wheel_floor_m", graph_wheel_floor_m, 0.0, 10.0, "m",
+          "translation noise added to a wheel edge between key-frames (0: no wheel edges)");
+    visit("graph_wheel_floor_deg", graph_wheel_floor_deg, 1e-6, 180.0, "deg", "rotation noise added to a wheel edge between key-frames");
     visit("graph_iterations", graph_iterations, 1, 1000, "", "Levenberg-Marquardt iterations per pose-graph optimisation");
     visit("seed", seed, 0, 2147483647, "", "random seed: equal seeds give equal results");
   }

@@ -235,6 +235,10 @@ class SlamLoop {
   /// the correction).
   void run_backend(FrameResult& result);
   void apply_optimized_graph(FrameResult& result);
+  /// Wheel edges: the wheel motion since the last key-frame, composed frame by frame with its
+  /// covariance; invalid after a frame without a prior.
+  void accumulate_wheel_motion(const MotionPrior* prior);
+  void add_wheel_edge(int from_node, int to_node);
   /// Moves every pose the tracking holds by a world-frame correction.
   void correct_tracking(const Eigen::Isometry3d& correction);
   /// Geometric mode: depth-only registration of each frame against the previous one.
@@ -332,6 +336,9 @@ class SlamLoop {
   int loop_closures_ = 0;
   int retired_keyframes_ = 0;
   bool graph_pending_ = false;
+  Eigen::Isometry3d wheel_since_keyframe_ = Eigen::Isometry3d::Identity();
+  Eigen::Matrix<double, 6, 6> wheel_since_keyframe_covariance_ = Eigen::Matrix<double, 6, 6>::Zero();
+  bool wheel_since_keyframe_valid_ = false;
   bool synchronous_backend_ = false;
   /// Candidate slots and their distances for one loop-closure search (set-up sized).
   std::vector<std::pair<double, int>> loop_candidates_;
