@@ -141,6 +141,14 @@ void pack_descriptors(const cv::Mat& descriptors, std::vector<std::uint64_t>& wo
 
 }  // namespace
 
+void MutualHammingMatcher::reserve(std::size_t max_descriptors) {
+  best_source_for_target_.reserve(max_descriptors);
+  best_distance_for_target_.reserve(max_descriptors);
+  scratch_best_target_.reserve(max_descriptors);
+  source_words_.reserve(max_descriptors * 4);
+  target_words_.reserve(max_descriptors * 4);
+}
+
 void MutualHammingMatcher::match(const cv::Mat& source, const cv::Mat& target, int max_distance,
                                  std::vector<FeatureMatch>& matches) {
   matches.clear();

@@ -164,6 +164,7 @@ SlamLoop::SlamLoop(const SlamConfig& config, const hal::Calibration& calibration
   }
   bridge_.reserve(capacity);
   matches_.reserve(capacity);
+  matcher_.reserve(capacity);
   const std::size_t correspondence_capacity =
       capacity + static_cast<std::size_t>(geometry::FrontendCapacities{}.max_keypoints);
   source_points_.reserve(correspondence_capacity);
@@ -172,6 +173,9 @@ SlamLoop::SlamLoop(const SlamConfig& config, const hal::Calibration& calibration
   kind_weights_.reserve(correspondence_capacity);
   gray_.create(camera_.height(), camera_.width(), CV_8UC1);
   infrared_.create(camera_.height(), camera_.width(), CV_8UC1);
+  // OpenCV sets up its parallel framework (worker threads, thread-local storage) in the first
+  // parallel call of the process and thread, which would otherwise be the first frame's cvtColor.
+  cv::cvtColor(cv::Mat(camera_.height(), camera_.width(), CV_8UC3, cv::Scalar::all(0)), gray_, cv::COLOR_BGR2GRAY);
   if (config_.mode == Mode::kGeometric || config_.mode == Mode::kFused) {
     if (const std::string error = geometric_.configure(camera_, config_.geometry); !error.empty()) {
       throw std::invalid_argument(error);

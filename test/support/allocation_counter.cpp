@@ -11,13 +11,23 @@ namespace {
 std::atomic<bool> g_counting{false};
 std::atomic<long> g_new_calls{0};
 std::atomic<long> g_malloc_calls{0};
+// The calling thread's calls while counting. Initial-exec TLS: the executable's own static TLS
+// block, read without __tls_get_addr, which may itself call malloc.
+thread_local long t_new_calls __attribute__((tls_model("initial-exec"))) = 0;
+thread_local long t_malloc_calls __attribute__((tls_model("initial-exec"))) = 0;
 
 void note_new() {
-  if (g_counting.load(std::memory_order_relaxed)) g_new_calls.fetch_add(1, std::memory_order_relaxed);
+  if (g_counting.load(std::memory_order_relaxed)) {
+    g_new_calls.fetch_add(1, std::memory_order_relaxed);
+    ++t_new_calls;
+  }
 }
 
 [[maybe_unused]] void note_malloc() {
-  if (g_counting.load(std::memory_order_relaxed)) g_malloc_calls.fetch_add(1, std::memory_order_relaxed);
+  if (g_counting.load(std::memory_order_relaxed)) {
+    g_malloc_calls.fetch_add(1, std::memory_order_relaxed);
+    ++t_malloc_calls;
+  }
 }
 
 void* counted_new(std::size_t size) {
@@ -115,7 +125,7 @@ bool counts_malloc() {
 #endif
 }
 
-CountAllocations::CountAllocations() {
+CountAllocations::CountAllocations() : thread_new_start_(t_new_calls), thread_malloc_start_(t_malloc_calls) {
   g_new_calls = 0;
   g_malloc_calls = 0;
   g_counting = true;
@@ -126,5 +136,9 @@ CountAllocations::~CountAllocations() { g_counting = false; }
 long CountAllocations::new_calls() const { return g_new_calls.load(); }
 
 long CountAllocations::malloc_calls() const { return g_malloc_calls.load(); }
+
+long CountAllocations::this_thread_new_calls() const { return t_new_calls - thread_new_start_; }
+
+long CountAllocations::this_thread_malloc_calls() const { return t_malloc_calls - thread_malloc_start_; }
 
 }  // namespace rankslam::test_support

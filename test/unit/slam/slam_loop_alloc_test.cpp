@@ -1,0 +1,270 @@
+// Fixed memory in the SLAM loop: SlamLoop::process() allocates nothing, frame after frame, in the
+// photometric mode and in the fused mode (ORB and geometric features, key-frame store, loop
+// closure, pose graph): not in the 2000 frames counted once the key-frame store is full,
+// key-frames are being retired and loop closures have been optimised, and not in the warm-up
+// before them either (scratch that only grows to the largest input seen so far would stop
+// growing at some frame, which may come after any warm-up).
+//
+// The frames are one loop of the simulated office (its hand-held motion repeats every 300
+// frames), decoded into memory before counting and replayed over and over with continuing
+// stamps, so every pass revisits the same places: key-frames keep coming, the loop search keeps
+// closing loops and the full store keeps retiring key-frames.
+//
+// What is counted: the back-end runs as in a live run (set_synchronous_backend(false)), so the
+// pose graph is optimised on the background optimiser's thread while tracking goes on, and
+// Ceres allocates there by design (bounded by the graph capacity, see rankslam/graph). The
+// counter sees every thread, so the steady-state tests count the calls of the tracking thread
+// alone (a thread-local count of the thread that calls process()). That the loop's work does
+// not move allocations onto some other thread is checked apart: with loop closure off no solve
+// is ever submitted, and then the count over every thread must be zero as well.
+
+#include "rankslam/replay/recording.hpp"
+#include "rankslam/replay/replay_camera.hpp"
+#include "rankslam/sim/simulator.hpp"
+#include "rankslam/slam/slam_loop.hpp"
+
+#include "allocation_counter.hpp"
+
+#include <gtest/gtest.h>
+
+#include <unistd.h>
+
+#include <array>
+#include <chrono>
+#include <cstdio>
+#include <filesystem>
+#include <string>
+#include <thread>
+#include <vector>
+
+namespace rankslam::slam {
+namespace {
+
+namespace fs = std::filesystem;
+using test_support::CountAllocations;
+
+constexpr int kLoopFrames = 300;  // one period of the office scene's motion at 30 Hz
+constexpr double kFrameInterval_s = 1.0 / 30.0;
+
+// The office loop, decoded once for every test below.
+class SlamLoopAllocations : public ::testing::Test {
+ protected:
+  static void SetUpTestSuite() {
+    const fs::path directory =
+        fs::temp_directory_path() / ("rankslam_slam_alloc_office_" + std::to_string(::getpid()));
+    fs::remove_all(directory);
+    sim::SimulationOptions options;
+    options.scene = "office";
+    options.out_dir = directory;
+    options.frames = kLoopFrames;
+    options.seed = 1;
+    error_ = new std::string(sim::simulate_recording(options, nullptr));
+    frames_ = new std::vector<hal::RgbdFrame>();
+    recording_ = new replay::Recording();
+    if (error_->empty()) *error_ = replay::open_recording(directory, *recording_);
+    if (error_->empty()) {
+      replay::ReplayDepthCamera camera(*recording_, {});
+      *error_ = camera.open();
+      hal::RgbdFrame frame;
+      while (error_->empty() && camera.read(frame, std::chrono::milliseconds(5000)) == hal::ReadStatus::kOk) {
+        // The camera reuses its buffers: keep copies.
+        hal::RgbdFrame copy;
+        copy.rgb = frame.rgb.clone();
+        copy.depth = frame.depth.clone();
+        copy.ir = frame.ir.clone();
+        frames_->push_back(copy);
+      }
+      if (error_->empty() && frames_->size() != static_cast<std::size_t>(kLoopFrames)) {
+        *error_ = "read " + std::to_string(frames_->size()) + " of " + std::to_string(kLoopFrames) + " frames";
+      }
+    }
+    std::error_code ignored;
+    fs::remove_all(directory, ignored);
+  }
+  static void TearDownTestSuite() {
+    delete frames_;
+    delete recording_;
+    delete error_;
+  }
+
+  static std::string* error_;
+  static replay::Recording* recording_;
+  static std::vector<hal::RgbdFrame>* frames_;
+};
+
+std::string* SlamLoopAllocations::error_ = nullptr;
+replay::Recording* SlamLoopAllocations::recording_ = nullptr;
+std::vector<hal::RgbdFrame>* SlamLoopAllocations::frames_ = nullptr;
+
+// What happened in the counted frames.
+struct CountedRun {
+  /// Warm-up: the tracking thread's allocations, the frames that allocated and the last of
+  /// them (-1: none).
+  long warm_up_allocations = 0;
+  int warm_up_frames_that_allocated = 0;
+  int last_warm_up_frame_that_allocated = -1;
+  long tracking_thread_allocations = 0;
+  long all_thread_allocations = 0;
+  int frames_that_allocated = 0;
+  /// The first frames that allocated (tracking thread), with what the loop did there.
+  std::vector<std::string> first_allocating_frames;
+  int tracked = 0;
+  int keyframes = 0;
+  int loop_closures = 0;
+  int graphs_applied = 0;
+  int retired_keyframes = 0;
+};
+
+// Replays the loop: `warm_up` frames, then `counted` frames, counting each frame's allocations.
+CountedRun run(SlamLoop& loop, const std::vector<hal::RgbdFrame>& frames, int warm_up, int counted) {
+  CountedRun out;
+  out.first_allocating_frames.reserve(8);
+  hal::RgbdFrame frame;
+  auto frame_at = [&](int index) -> const hal::RgbdFrame& {
+    frame = frames[static_cast<std::size_t>(index % kLoopFrames)];  // shares the images, no copy
+    frame.sequence = static_cast<std::uint32_t>(index);
+    frame.stamp_s = index * kFrameInterval_s;
+    frame.stamp_ns = static_cast<std::int64_t>(index) * 33'333'333;
+    return frame;
+  };
+  {
+    const CountAllocations count;
+    for (int i = 0; i < warm_up; ++i) {
+      const hal::RgbdFrame& input = frame_at(i);
+      const long before = count.this_thread_allocations();
+      (void)loop.process(input);
+      if (count.this_thread_allocations() > before) {
+        ++out.warm_up_frames_that_allocated;
+        out.last_warm_up_frame_that_allocated = i;
+      }
+    }
+    out.warm_up_allocations = count.this_thread_allocations();
+  }
+  const int retired_before = loop.retired_keyframes();
+  {
+    const CountAllocations count;
+    for (int i = warm_up; i < warm_up + counted; ++i) {
+      const hal::RgbdFrame& input = frame_at(i);  // copies cv::Mat headers: no allocation
+      const long before = count.this_thread_allocations();
+      const FrameResult result = loop.process(input);
+      const long allocations = count.this_thread_allocations() - before;
+      if (allocations > 0) {
+        ++out.frames_that_allocated;
+        if (out.first_allocating_frames.size() < out.first_allocating_frames.capacity()) {
+          char line[160];
+          std::snprintf(line, sizeof line, "frame %d: %ld allocations (%s%s%s%s)", i, allocations,
+                        to_string(result.status).data(), result.keyframe ? ", key-frame" : "",
+                        result.loop_closure ? ", loop closure" : "", result.graph_applied ? ", graph applied" : "");
+          out.first_allocating_frames.emplace_back(line);
+        }
+      }
+      out.tracked += result.status == FrameStatus::kTracking ? 1 : 0;
+      out.keyframes += result.keyframe ? 1 : 0;
+      out.loop_closures += result.loop_closure ? 1 : 0;
+      out.graphs_applied += result.graph_applied ? 1 : 0;
+    }
+    out.tracking_thread_allocations = count.this_thread_allocations();
+    out.all_thread_allocations = count.allocations();
+  }
+  out.retired_keyframes = loop.retired_keyframes() - retired_before;
+  return out;
+}
+
+std::string describe(const CountedRun& run) {
+  std::string text = std::to_string(run.frames_that_allocated) + " frames allocated";
+  for (const std::string& line : run.first_allocating_frames) text += "\n  " + line;
+  return text;
+}
+
+SlamConfig config_for(Mode mode) {
+  SlamConfig config;
+  config.mode = mode;
+  // A small store fills within the warm-up (the office gives about 17 key-frames per pass), so
+  // the counted frames retire key-frames as well as store them.
+  config.keyframe_capacity = 32;
+  return config;
+}
+
+constexpr int kWarmUpFrames = 2 * kLoopFrames;
+constexpr int kCountedFrames = 2000;
+
+void expect_steady_state_without_allocations(Mode mode, const std::vector<hal::RgbdFrame>& frames,
+                                             const hal::Calibration& calibration) {
+  SlamLoop loop(config_for(mode), calibration);
+  loop.set_synchronous_backend(false);
+  const CountedRun counted = run(loop, frames, kWarmUpFrames, kCountedFrames);
+  std::printf("%s: warm-up of %d frames: %ld allocations on the tracking thread in %d frames, the last at frame %d\n",
+              std::string(to_string(mode)).c_str(), kWarmUpFrames, counted.warm_up_allocations,
+              counted.warm_up_frames_that_allocated, counted.last_warm_up_frame_that_allocated);
+  std::printf("%s: %d counted frames, %d tracked, %d key-frames, %d retired, %d loop closures, %d graphs applied; "
+              "allocations: tracking thread %ld, all threads (with the optimiser's solves) %ld\n",
+              std::string(to_string(mode)).c_str(), kCountedFrames, counted.tracked, counted.keyframes,
+              counted.retired_keyframes, counted.loop_closures, counted.graphs_applied,
+              counted.tracking_thread_allocations, counted.all_thread_allocations);
+  EXPECT_EQ(counted.tracking_thread_allocations, 0) << describe(counted);
+  EXPECT_EQ(counted.warm_up_allocations, 0) << "the last at frame " << counted.last_warm_up_frame_that_allocated;
+  // The counted frames must take every path of the steady state, or the zero proves little.
+  EXPECT_EQ(counted.tracked, kCountedFrames);
+  EXPECT_GT(counted.keyframes, 20);
+  EXPECT_GT(counted.retired_keyframes, 0);
+  EXPECT_GT(counted.loop_closures, 0);
+  EXPECT_GT(counted.graphs_applied, 0);
+}
+
+TEST_F(SlamLoopAllocations, CounterSeesThisThreadApartFromOthers) {
+  long this_thread = 0;
+  long all_threads = 0;
+  {
+    const CountAllocations count;
+    std::thread other([] {
+      const std::vector<double> scratch(100, 1.0);
+      volatile double sink = scratch[7];
+      (void)sink;
+    });
+    other.join();
+    this_thread = count.this_thread_allocations();
+    all_threads = count.allocations();
+  }
+  EXPECT_GT(all_threads, this_thread);
+  {
+    const CountAllocations count;
+    const std::vector<double> scratch(100, 1.0);
+    volatile double sink = scratch[7];
+    (void)sink;
+    this_thread = count.this_thread_allocations();
+  }
+  EXPECT_GE(this_thread, 1);
+}
+
+TEST_F(SlamLoopAllocations, PhotometricSteadyStateAllocatesNothing) {
+  ASSERT_TRUE(error_->empty()) << *error_;
+  expect_steady_state_without_allocations(Mode::kPhotometric, *frames_, recording_->calibration);
+}
+
+TEST_F(SlamLoopAllocations, FusedSteadyStateAllocatesNothing) {
+  ASSERT_TRUE(error_->empty()) << *error_;
+  expect_steady_state_without_allocations(Mode::kFused, *frames_, recording_->calibration);
+}
+
+// Without loop closure no graph is ever submitted, so no solve runs: then no thread at all may
+// allocate for the loop (an OpenCV worker pool, say).
+TEST_F(SlamLoopAllocations, FusedWithoutSolvesAllocatesNothingOnAnyThread) {
+  ASSERT_TRUE(error_->empty()) << *error_;
+  SlamConfig config = config_for(Mode::kFused);
+  config.loop_max_candidates = 0;
+  SlamLoop loop(config, recording_->calibration);
+  loop.set_synchronous_backend(false);
+  const CountedRun counted = run(loop, *frames_, kWarmUpFrames, kLoopFrames);
+  std::printf("fused, no loop closure: %d counted frames, %d key-frames, %d retired; allocations: tracking thread "
+              "%ld, all threads %ld\n",
+              kLoopFrames, counted.keyframes, counted.retired_keyframes, counted.tracking_thread_allocations,
+              counted.all_thread_allocations);
+  EXPECT_EQ(counted.loop_closures, 0);
+  EXPECT_EQ(counted.graphs_applied, 0);
+  EXPECT_EQ(counted.tracking_thread_allocations, 0) << describe(counted);
+  EXPECT_EQ(counted.all_thread_allocations, 0);
+  EXPECT_GT(counted.keyframes, 0);
+}
+
+}  // namespace
+}  // namespace rankslam::slam
