@@ -1,0 +1,85 @@
+#pragma once
+
+// A fixed team of threads that shares the per-frame loops of the front-end (normals, saliency,
+// descriptors, matching, hypotheses) between the cores of the robot computer. The threads are
+// started at set-up and sleep between loops; a loop allocates nothing and returns when every
+// index is done, so callers see a plain blocking call.
+
+#include <atomic>
+#include <condition_variable>
+#include <cstdint>
+#include <mutex>
+#include <string>
+#include <thread>
+#include <type_traits>
+#include <vector>
+
+namespace rankslam::parallel {
+
+class ThreadTeam {
+ public:
+  /// Largest team: the per-thread scratch of the callers is sized by size(), and more threads
+  /// than this buy nothing on the loops it serves (a few thousand items each).
+  static constexpr int kMaxThreads = 8;
+
+  /// A team of one: every loop runs on the calling thread.
+  ThreadTeam() = default;
+  ~ThreadTeam();
+  ThreadTeam(const ThreadTeam&) = delete;
+  ThreadTeam& operator=(const ThreadTeam&) = delete;
+
+  /// Set-up (allocates, starts threads): the calling thread plus threads − 1 workers. A team that
+  /// was started before is stopped first. Empty on success, else why it failed.
+  [[nodiscard]] std::string start(int threads);
+
+  /// Threads taking part in a loop, the caller included (1 before start()).
+  [[nodiscard]] int size() const { return static_cast<int>(workers_.size()) + 1; }
+
+  /// Calls body(begin, end, thread) on consecutive chunks of at most `grain` indices that cover
+  /// [0, count) once each, on every thread of the team; `thread` (0 = the caller) is below
+  /// size(), for per-thread scratch. A team of one, or a loop of one chunk, makes one call over
+  /// the whole range. Chunks go to whichever thread asks first, so the body must
+  /// write only what belongs to its indices. Blocks until all chunks are done. The body must not
+  /// throw, and must not call for_chunks of the same team (not re-entrant).
+  template <class Body>
+  void for_chunks(int count, int grain, Body&& body) {
+    using Decayed = std::remove_reference_t<Body>;
+    run(count, grain,
+        [](void* context, int begin, int end, int thread) {
+          (*static_cast<Decayed*>(context))(begin, end, thread);
+        },
+        const_cast<void*>(static_cast<const void*>(&body)));
+  }
+
+  /// Calls body(part, thread) once for each part in [0, parts), parts spread over the team.
+  template <class Body>
+  void for_each(int parts, Body&& body) {
+    for_chunks(parts, 1, [&body](int begin, int end, int thread) {
+      for (int part = begin; part < end; ++part) body(part, thread);
+    });
+  }
+
+ private:
+  using Trampoline = void (*)(void* context, int begin, int end, int thread);
+
+  void run(int count, int grain, Trampoline trampoline, void* context);
+  void work(int thread, Trampoline trampoline, void* context);
+  void worker_main(int thread);
+  void stop();
+
+  std::vector<std::thread> workers_;
+  std::mutex mutex_;
+  std::condition_variable wake_;
+  std::condition_variable finished_;
+  // The loop being run; written under mutex_ before generation_ changes.
+  Trampoline trampoline_ = nullptr;
+  void* context_ = nullptr;
+  int count_ = 0;
+  int grain_ = 1;
+  std::uint64_t generation_ = 0;
+  int running_workers_ = 0;
+  bool stopping_ = false;
+  std::atomic<int> next_{0};
+};
+
+}  // namespace rankslam::parallel

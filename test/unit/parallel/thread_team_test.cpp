@@ -1,0 +1,99 @@
+#include "rankslam/parallel/thread_team.hpp"
+
+#include <atomic>
+#include <cstdint>
+#include <numeric>
+#include <vector>
+
+#include <gtest/gtest.h>
+
+#include "allocation_counter.hpp"
+
+namespace rankslam::parallel {
+namespace {
+
+TEST(ThreadTeam, RefusesATeamSizeOutOfRange) {
+  ThreadTeam team;
+  EXPECT_NE(team.start(0), "");
+  EXPECT_NE(team.start(ThreadTeam::kMaxThreads + 1), "");
+  EXPECT_EQ(team.size(), 1);
+  EXPECT_EQ(team.start(2), "");
+  EXPECT_EQ(team.size(), 2);
+}
+
+TEST(ThreadTeam, AnUnstartedTeamRunsTheWholeLoopOnTheCaller) {
+  ThreadTeam team;
+  std::vector<int> visits(100, 0);
+  team.for_chunks(100, 7, [&](int begin, int end, int thread) {
+    EXPECT_EQ(thread, 0);
+    for (int i = begin; i < end; ++i) ++visits[static_cast<std::size_t>(i)];
+  });
+  for (const int v : visits) EXPECT_EQ(v, 1);
+}
+
+// Every index once, every thread number in range, over many loops of varied sizes and grains:
+// a lost wake-up or a chunk handed out twice shows here.
+TEST(ThreadTeam, EveryIndexIsVisitedOnceInEveryLoop) {
+  for (const int threads : {2, 3, 4}) {
+    ThreadTeam team;
+    ASSERT_EQ(team.start(threads), "");
+    std::vector<std::atomic<int>> visits(5000);
+    std::vector<std::atomic<int>> chunks_by_thread(static_cast<std::size_t>(threads));
+    for (int loop = 0; loop < 2000; ++loop) {
+      const int count = 1 + (loop * 37) % 5000;
+      const int grain = 1 + loop % 64;
+      for (int i = 0; i < count; ++i) visits[static_cast<std::size_t>(i)].store(0);
+      team.for_chunks(count, grain, [&](int begin, int end, int thread) {
+        ASSERT_GE(thread, 0);
+        ASSERT_LT(thread, threads);
+        ASSERT_LE(end - begin, grain);
+        chunks_by_thread[static_cast<std::size_t>(thread)].fetch_add(1);
+        for (int i = begin; i < end; ++i) visits[static_cast<std::size_t>(i)].fetch_add(1);
+      });
+      int wrong = 0;
+      for (int i = 0; i < count; ++i) wrong += visits[static_cast<std::size_t>(i)].load() != 1 ? 1 : 0;
+      ASSERT_EQ(wrong, 0) << "loop " << loop << " of " << count << " indices, grain " << grain;
+    }
+    int workers_used = 0;
+    for (int t = 1; t < threads; ++t) workers_used += chunks_by_thread[static_cast<std::size_t>(t)].load() > 0 ? 1 : 0;
+    EXPECT_GT(workers_used, 0) << threads << " threads: the workers never took a chunk";
+  }
+}
+
+TEST(ThreadTeam, ForEachGivesEveryPartOnce) {
+  ThreadTeam team;
+  ASSERT_EQ(team.start(2), "");
+  std::vector<int> parts(64, 0);
+  team.for_each(64, [&](int part, int /*thread*/) { parts[static_cast<std::size_t>(part)] += part; });
+  for (int p = 0; p < 64; ++p) EXPECT_EQ(parts[static_cast<std::size_t>(p)], p);
+}
+
+// The loops run per frame: after start() they allocate nothing on any thread.
+TEST(ThreadTeam, LoopsAllocateNothingAfterStart) {
+  ThreadTeam team;
+  ASSERT_EQ(team.start(2), "");
+  std::vector<std::int64_t> sums(2, 0);
+  team.for_chunks(1000, 10, [&](int, int, int) {});  // first wake-up outside the count
+  test_support::CountAllocations count;
+  for (int loop = 0; loop < 500; ++loop) {
+    team.for_chunks(1000, 10, [&](int begin, int end, int thread) {
+      for (int i = begin; i < end; ++i) sums[static_cast<std::size_t>(thread)] += i;
+    });
+  }
+  EXPECT_EQ(count.allocations(), 0);
+  EXPECT_EQ(sums[0] + sums[1], 500LL * 999 * 1000 / 2);
+}
+
+TEST(ThreadTeam, RestartingChangesTheTeamSize) {
+  ThreadTeam team;
+  ASSERT_EQ(team.start(3), "");
+  EXPECT_EQ(team.size(), 3);
+  ASSERT_EQ(team.start(1), "");
+  EXPECT_EQ(team.size(), 1);
+  int total = 0;
+  team.for_chunks(10, 3, [&](int begin, int end, int) { total += end - begin; });
+  EXPECT_EQ(total, 10);
+}
+
+}  // namespace
+}  // namespace rankslam::parallel
