@@ -2,6 +2,8 @@
 
 #include <algorithm>
 #include <cmath>
+#include <cstdint>
+#include <cstring>
 
 namespace rankslam::robust {
 
@@ -46,14 +48,64 @@ bool fill_inverse_variances(std::span<const double> point_sigma, int n,
   return true;
 }
 
+namespace {
+
+// Below this many values std::sort is as fast as the radix passes.
+constexpr int kRadixSortMinimum = 512;
+constexpr int kDigitBits = 11;
+static_assert(RobustWorkspace::kDigitBuckets == 1 << kDigitBits);
+
+std::uint64_t key_bits(double key) {
+  std::uint64_t bits = 0;
+  std::memcpy(&bits, &key, sizeof bits);
+  return bits;
+}
+
+// Sorts entries by (key, index) for keys ≥ 0 (no NaN): the bits of a non-negative double order
+// as the values do, so a stable least-significant-digit radix sort of entries that start in
+// index order gives the same order as the comparison sort, in O(n) per 11-bit digit. Digits that
+// every key shares (the exponent's high bits, mostly) are skipped.
+void radix_sort(RobustWorkspace::RankEntry* entries, RobustWorkspace::RankEntry* scratch, int n,
+                int* counts) {
+  constexpr int kBuckets = RobustWorkspace::kDigitBuckets;
+  RobustWorkspace::RankEntry* from = entries;
+  RobustWorkspace::RankEntry* to = scratch;
+  for (int shift = 0; shift < 64; shift += kDigitBits) {
+    std::fill(counts, counts + kBuckets, 0);
+    for (int i = 0; i < n; ++i) ++counts[(key_bits(from[i].key) >> shift) & (kBuckets - 1)];
+    if (counts[(key_bits(from[0].key) >> shift) & (kBuckets - 1)] == n) continue;  // one bucket
+    int start = 0;
+    for (int b = 0; b < kBuckets; ++b) {
+      const int count = counts[b];
+      counts[b] = start;
+      start += count;
+    }
+    for (int i = 0; i < n; ++i) to[counts[(key_bits(from[i].key) >> shift) & (kBuckets - 1)]++] = from[i];
+    std::swap(from, to);
+  }
+  if (from != entries) std::copy(from, from + n, entries);
+}
+
+}  // namespace
+
 void sort_residuals(RobustWorkspace& workspace, int n) {
   double* sq = workspace.sq_residuals();
   RobustWorkspace::RankEntry* entries = workspace.rank_entries();
-  for (int i = 0; i < n; ++i) entries[i] = {sq[i], i};
-  std::sort(entries, entries + n,
-            [](const RobustWorkspace::RankEntry& a, const RobustWorkspace::RankEntry& b) {
-              return a.key < b.key || (a.key == b.key && a.index < b.index);
-            });
+  bool non_negative = true;
+  for (int i = 0; i < n; ++i) {
+    entries[i] = {sq[i], i};
+    non_negative = non_negative && sq[i] >= 0.0;  // false for NaN too
+  }
+  if (n >= kRadixSortMinimum && non_negative) {
+    // +0.0 and −0.0 compare equal but differ in bits; −0.0 (a negative zero product) becomes +0.0.
+    for (int i = 0; i < n; ++i) entries[i].key += 0.0;
+    radix_sort(entries, workspace.rank_scratch(), n, workspace.digit_counts());
+  } else {
+    std::sort(entries, entries + n,
+              [](const RobustWorkspace::RankEntry& a, const RobustWorkspace::RankEntry& b) {
+                return a.key < b.key || (a.key == b.key && a.index < b.index);
+              });
+  }
   int* order = workspace.order();
   for (int i = 0; i < n; ++i) {
     sq[i] = entries[i].key;

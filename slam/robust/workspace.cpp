@@ -13,6 +13,8 @@ void RobustWorkspace::reserve(int max_points) {
   order_.assign(n, 0);
   mask_.assign(n, 0);
   rank_entries_.assign(n, RankEntry{0.0, 0});
+  rank_scratch_.assign(n, RankEntry{0.0, 0});
+  digit_counts_.assign(kDigitBuckets, 0);
   capacity_ = static_cast<int>(n);
 }
 

@@ -3,8 +3,11 @@
 
 #include <algorithm>
 #include <cmath>
+#include <cstdio>
 #include <limits>
 #include <numbers>
+#include <numeric>
+#include <random>
 #include <vector>
 
 #include <gtest/gtest.h>
@@ -195,6 +198,55 @@ TEST_F(MsseRigid, FailureRateAt80PercentOutliers) {
   EXPECT_LE(misses, 2);
 }
 
+// Sharing step 1 among a thread team draws the same samples and keeps the same winner: the
+// estimate, its inliers and its counts are those of the serial loop, with and without noise
+// normalisation, with a gate that rejects many hypotheses, and with draws left over.
+TEST_F(MsseRigid, ATeamGivesTheSerialEstimate) {
+  parallel::ThreadTeam team;
+  ASSERT_EQ(team.start(2), "");
+  MsseTeamScratch<Eigen::Isometry3d> scratch;
+  scratch.reserve(&team, 1000, RigidModel::kSampleSize, kPoints);
+  RobustWorkspace serial_workspace(kPoints);
+  RigidMotionGate gate;
+  gate.max_translation_m = 0.3;
+  gate.max_rotation_rad = 0.3;
+  int gated_total = 0;
+  int degenerate_total = 0;
+  for (const double ratio : {0.0, 0.5, 0.8, 0.9}) {
+    for (std::uint64_t seed = 1; seed <= 8; ++seed) {
+      SCOPED_TRACE(::testing::Message() << "outliers " << ratio << " seed " << seed);
+      const testing::Scene scene = scene_with(ratio, seed);
+      ASSERT_EQ(model_.set_correspondences(scene.src, scene.dst), RobustStatus::kOk);
+      ASSERT_EQ(correspondence_sigmas_m(scene.src, scene.dst, DepthNoiseModel{}, sigmas_), RobustStatus::kOk);
+      const std::span<const double> sigma(sigmas_.data(), static_cast<std::size_t>(scene.src.cols()));
+      for (const bool gated : {false, true}) {
+        for (const bool normalised : {false, true}) {
+          MsseConfig config;
+          config.seed = seed * 7919;
+          const std::span<const double> point_sigma = normalised ? sigma : std::span<const double>{};
+          const auto serial = gated ? estimate_msse(model_, config, serial_workspace, point_sigma, gate)
+                                    : estimate_msse(model_, config, serial_workspace, point_sigma);
+          const auto shared = gated ? estimate_msse(model_, config, workspace_, point_sigma, gate, &scratch)
+                                    : estimate_msse(model_, config, workspace_, point_sigma,
+                                                    AcceptAllHypotheses{}, &scratch);
+          ASSERT_EQ(serial.status, shared.status);
+          EXPECT_EQ(serial.hypotheses_evaluated, shared.hypotheses_evaluated);
+          EXPECT_EQ(serial.degenerate_samples, shared.degenerate_samples);
+          EXPECT_EQ(serial.gated_hypotheses, shared.gated_hypotheses);
+          gated_total += shared.gated_hypotheses;
+          degenerate_total += shared.degenerate_samples;
+          if (!serial.ok()) continue;
+          EXPECT_EQ(serial.inlier_count, shared.inlier_count);
+          EXPECT_EQ(serial.least_kth_sq_residual, shared.least_kth_sq_residual);
+          EXPECT_TRUE(serial.model.matrix() == shared.model.matrix());
+          EXPECT_TRUE(std::equal(serial.inliers.begin(), serial.inliers.end(), shared.inliers.begin()));
+        }
+      }
+    }
+  }
+  EXPECT_GT(gated_total, 1000) << "the gate should have rejected hypotheses";
+}
+
 TEST_F(MsseRigid, ScaleAndInliersAreConsistent) {
   const testing::Scene scene = scene_with(0.5, 3);
   const auto result = run(scene, MsseConfig{}, false);
@@ -358,6 +410,41 @@ TEST_F(MsseRigid, ThesisSingleRefitStillWorks) {
   const auto raw = run(scene, config, false);
   ASSERT_TRUE(raw.ok());
   EXPECT_FALSE(raw.refined);
+}
+
+}  // namespace
+}  // namespace rankslam::robust
+
+namespace rankslam::robust {
+namespace {
+
+// The one full sort per estimate orders by (residual, index); large inputs take a radix sort,
+// which must give exactly the comparison sort's order, ties and zeros included.
+TEST(SortResiduals, RadixAndComparisonSortsAgreeOnTiesZerosAndWideRanges) {
+  std::mt19937_64 rng(7);
+  for (const int n : {1, 2, 511, 512, 513, 4000, 16384}) {
+    RobustWorkspace workspace(n);
+    std::vector<double> values(static_cast<std::size_t>(n));
+    std::uniform_real_distribution<double> uniform(0.0, 1.0);
+    for (int i = 0; i < n; ++i) {
+      double v = std::pow(10.0, -12.0 + 18.0 * uniform(rng));  // 1e-12 … 1e6
+      if (i % 7 == 0) v = 0.25;                                   // many exact ties
+      if (i % 11 == 0) v = 0.0;
+      if (i % 13 == 0) v = -0.0;
+      values[static_cast<std::size_t>(i)] = v;
+    }
+    std::copy(values.begin(), values.end(), workspace.sq_residuals());
+    detail::sort_residuals(workspace, n);
+    std::vector<int> expected(static_cast<std::size_t>(n));
+    std::iota(expected.begin(), expected.end(), 0);
+    std::stable_sort(expected.begin(), expected.end(), [&](int a, int b) {
+      return values[static_cast<std::size_t>(a)] < values[static_cast<std::size_t>(b)];
+    });
+    for (int i = 0; i < n; ++i) {
+      ASSERT_EQ(workspace.order()[i], expected[static_cast<std::size_t>(i)]) << "n " << n << " rank " << i;
+      ASSERT_EQ(workspace.sq_residuals()[i], values[static_cast<std::size_t>(expected[static_cast<std::size_t>(i)])]);
+    }
+  }
 }
 
 }  // namespace

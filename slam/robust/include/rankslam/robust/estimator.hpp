@@ -107,6 +107,20 @@ struct HypothesisCounts {
   int gated = 0;
 };
 
+/// Draws `size` distinct indices below n (n ≥ size) into sample: the minimal samples of every
+/// estimator, so that the serial and the team's hypothesis loops draw the same samples.
+inline void draw_sample(Pcg32& rng, int n, int size, int* sample) {
+  for (int s = 0; s < size; ++s) {
+    int candidate = 0;
+    bool repeated = true;
+    while (repeated) {
+      candidate = static_cast<int>(rng.bounded(static_cast<std::uint32_t>(n)));
+      repeated = std::find(sample, sample + s, candidate) != sample + s;
+    }
+    sample[s] = candidate;
+  }
+}
+
 /// Draws the minimal samples, fits them, applies the gate, and hands each surviving hypothesis to
 /// `visit`. Stops after `hypotheses` evaluated or `hypotheses · draws_per_hypothesis` draws.
 template <RobustModel Model, class Gate, class Visit>
@@ -132,15 +146,7 @@ void for_each_hypothesis(const Model& model, int hypotheses, int draws_per_hypot
     const std::int64_t max_draws =
         static_cast<std::int64_t>(hypotheses) * std::max(1, draws_per_hypothesis);
     for (std::int64_t draw = 0; draw < max_draws && counts.evaluated < hypotheses; ++draw) {
-      for (int s = 0; s < kSample; ++s) {
-        int candidate = 0;
-        bool repeated = true;
-        while (repeated) {  // n >= kSample is checked by the caller, so this terminates
-          candidate = static_cast<int>(rng.bounded(static_cast<std::uint32_t>(n)));
-          repeated = std::find(sample.begin(), sample.begin() + s, candidate) != sample.begin() + s;
-        }
-        sample[static_cast<std::size_t>(s)] = candidate;
-      }
+      draw_sample(rng, n, kSample, sample.data());
       const std::span<const int> indices(sample);
       if (model.sample_degenerate(indices) || !model.fit_sample(indices, params)) {
         ++counts.degenerate;

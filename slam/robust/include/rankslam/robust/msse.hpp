@@ -8,8 +8,13 @@
 #include <cstdint>
 #include <limits>
 #include <span>
+#include <string>
 #include <string_view>
+#include <vector>
 
+#include <Eigen/Core>
+
+#include "rankslam/parallel/thread_team.hpp"
 #include "rankslam/robust/estimator.hpp"
 
 namespace rankslam::robust {
@@ -68,6 +73,41 @@ struct MsseConfig {
 [[nodiscard]] int msse_first_order(double min_inlier_fraction, int n, int parameter_count,
                                    int sample_size);
 
+/// Set-up memory for sharing MSSE's step 1 among the threads of a team: the minimal samples are
+/// drawn in the serial order, fitted and gated concurrently, and the hypotheses scored in one
+/// contiguous share per thread; the winner is the first hypothesis with the least k0-th residual,
+/// as in the serial loop, so the estimate is the same with or without the team.
+template <class Params>
+class MsseTeamScratch {
+ public:
+  /// Set-up (allocates): room for up to max_hypotheses hypotheses of `sample_size` points over
+  /// up to max_points points. A null team (or a team of one) leaves the estimates serial.
+  void reserve(parallel::ThreadTeam* team, int max_hypotheses, int sample_size, int max_points) {
+    team_ = team;
+    max_hypotheses_ = std::max(0, max_hypotheses);
+    max_points_ = std::max(0, max_points);
+    const auto h = static_cast<std::size_t>(max_hypotheses_);
+    params_.assign(h, Params{});
+    samples_.assign(h * static_cast<std::size_t>(std::max(1, sample_size)), 0);
+    outcome_.assign(h, 0);
+    const int threads = team != nullptr ? team->size() : 1;
+    scores_.assign(static_cast<std::size_t>(threads) * static_cast<std::size_t>(max_points_), 0.0);
+  }
+
+  /// True when an estimate of `hypotheses` over n points can use the team.
+  [[nodiscard]] bool usable(int hypotheses, int n) const {
+    return team_ != nullptr && team_->size() > 1 && hypotheses <= max_hypotheses_ && n <= max_points_;
+  }
+
+  parallel::ThreadTeam* team_ = nullptr;
+  int max_hypotheses_ = 0;
+  int max_points_ = 0;
+  std::vector<Params, Eigen::aligned_allocator<Params>> params_;
+  std::vector<int> samples_;
+  std::vector<std::uint8_t> outcome_;  // per drawn sample: 0 evaluated, 1 degenerate, 2 gated
+  std::vector<double> scores_;         // per thread: max_points_ scores
+};
+
 /// MSSE (ALGORITHMS.md §1) on any RobustModel:
 ///  1. least-k-th-order selection over H minimal-sample hypotheses (nth_element per hypothesis,
 ///     with an exact early exit: a hypothesis with fewer than k0 residuals below the best k0-th
@@ -81,12 +121,13 @@ struct MsseConfig {
 /// point_sigma: optional per-point noise scale (e.g. correspondence_sigmas_m for Kinect depth);
 /// when given, residuals are ranked and segmented as r_i/σ_i. gate: optional predicate on a
 /// hypothesis (e.g. RigidMotionGate around a wheel-odometry prediction); rejected hypotheses do
-/// not count toward H. Allocates nothing once `workspace` holds model.size() points.
+/// not count toward H. team: optional scratch that shares step 1 among a thread team (same
+/// result). Allocates nothing once `workspace` (and `team`) hold model.size() points.
 template <RobustModel Model, class Gate = AcceptAllHypotheses>
-RobustResult<typename Model::Params> estimate_msse(const Model& model, const MsseConfig& config,
-                                                   RobustWorkspace& workspace,
-                                                   std::span<const double> point_sigma = {},
-                                                   const Gate& gate = Gate{}) {
+RobustResult<typename Model::Params> estimate_msse(
+    const Model& model, const MsseConfig& config, RobustWorkspace& workspace,
+    std::span<const double> point_sigma = {}, const Gate& gate = Gate{},
+    MsseTeamScratch<typename Model::Params>* team = nullptr) {
   using Params = typename Model::Params;
   constexpr int kP = Model::kParameterCount;
   constexpr int kSample = Model::kSampleSize;
@@ -162,8 +203,100 @@ RobustResult<typename Model::Params> estimate_msse(const Model& model, const Mss
     have_best = true;
   };
   detail::HypothesisCounts counts;
-  detail::for_each_hypothesis(model, config.hypotheses, config.draws_per_hypothesis, config.seed,
-                              gate, counts, visit);
+  if constexpr (kSample > 0) {
+    if (team != nullptr && team->usable(config.hypotheses, n)) {
+      // The serial loop's draws, in batches: each batch is fitted and gated concurrently, and
+      // holds no more samples than hypotheses still wanted, so no draw is made that the serial
+      // loop would not make.
+      MsseTeamScratch<Params>& shared = *team;
+      Pcg32 rng(config.seed);
+      const std::int64_t max_draws = static_cast<std::int64_t>(config.hypotheses) *
+                                     std::max(1, config.draws_per_hypothesis);
+      std::int64_t draws = 0;
+      while (counts.evaluated < config.hypotheses && draws < max_draws) {
+        const int batch = static_cast<int>(
+            std::min<std::int64_t>(config.hypotheses - counts.evaluated, max_draws - draws));
+        for (int i = 0; i < batch; ++i) {
+          detail::draw_sample(rng, n, kSample, shared.samples_.data() + static_cast<std::ptrdiff_t>(i) * kSample);
+        }
+        draws += batch;
+        Params* slots = shared.params_.data() + counts.evaluated;
+        shared.team_->for_chunks(batch, 16, [&](int begin, int end, int /*thread*/) {
+          for (int i = begin; i < end; ++i) {
+            const std::span<const int> indices(
+                shared.samples_.data() + static_cast<std::ptrdiff_t>(i) * kSample, kSample);
+            Params params = Model::default_params();
+            std::uint8_t outcome = 0;
+            if (model.sample_degenerate(indices) || !model.fit_sample(indices, params)) {
+              outcome = 1;
+            } else if (!gate(params)) {
+              outcome = 2;
+            }
+            shared.outcome_[static_cast<std::size_t>(i)] = outcome;
+            slots[i] = params;
+          }
+        });
+        int kept = 0;
+        for (int i = 0; i < batch; ++i) {
+          switch (shared.outcome_[static_cast<std::size_t>(i)]) {
+            case 0: slots[kept++] = slots[i]; break;
+            case 1: ++counts.degenerate; break;
+            default: ++counts.gated; break;
+          }
+        }
+        counts.evaluated += kept;
+      }
+      // Each thread scores a contiguous share and keeps its first least k0-th residual; the
+      // shares are then compared in order, so ties go to the earlier hypothesis as serially.
+      const int hypotheses = counts.evaluated;
+      const int shares = shared.team_->size();
+      std::array<double, parallel::ThreadTeam::kMaxThreads> share_kth{};
+      std::array<int, parallel::ThreadTeam::kMaxThreads> share_best{};
+      shared.team_->for_each(shares, [&](int share, int thread) {
+        double* share_scores = shared.scores_.data() + static_cast<std::ptrdiff_t>(thread) * shared.max_points_;
+        const int first = static_cast<int>(static_cast<std::int64_t>(hypotheses) * share / shares);
+        const int last = static_cast<int>(static_cast<std::int64_t>(hypotheses) * (share + 1) / shares);
+        double kth = std::numeric_limits<double>::infinity();
+        int best_index = -1;
+        for (int h = first; h < last; ++h) {
+          const Params& hypothesis = shared.params_[static_cast<std::size_t>(h)];
+          bool beaten = false;
+          if (best_index >= 0) {
+            int below = 0;
+            for (int begin = 0; begin < n && !beaten; begin += kBlock) {
+              const int count = std::min(kBlock, n - begin);
+              evaluate(hypothesis, begin, count, share_scores + begin);
+              below += detail::count_below(share_scores + begin, count, kth);
+              beaten = below + (n - begin - count) < k0;
+            }
+          } else {
+            evaluate(hypothesis, 0, n, share_scores);
+          }
+          if (beaten) continue;
+          std::nth_element(share_scores, share_scores + (k0 - 1), share_scores + n);
+          kth = share_scores[k0 - 1];
+          best_index = h;
+        }
+        share_kth[static_cast<std::size_t>(share)] = kth;
+        share_best[static_cast<std::size_t>(share)] = best_index;
+      });
+      for (int share = 0; share < shares; ++share) {
+        const int index = share_best[static_cast<std::size_t>(share)];
+        if (index < 0) continue;
+        if (!have_best || share_kth[static_cast<std::size_t>(share)] < best_kth) {
+          best_kth = share_kth[static_cast<std::size_t>(share)];
+          best = shared.params_[static_cast<std::size_t>(index)];
+          have_best = true;
+        }
+      }
+    } else {
+      detail::for_each_hypothesis(model, config.hypotheses, config.draws_per_hypothesis,
+                                  config.seed, gate, counts, visit);
+    }
+  } else {
+    detail::for_each_hypothesis(model, config.hypotheses, config.draws_per_hypothesis, config.seed,
+                                gate, counts, visit);
+  }
   result.hypotheses_evaluated = counts.evaluated;
   result.degenerate_samples = counts.degenerate;
   result.gated_hypotheses = counts.gated;

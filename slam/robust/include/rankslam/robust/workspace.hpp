@@ -34,6 +34,11 @@ class RobustWorkspace {
   [[nodiscard]] int* order() { return order_.data(); }
   [[nodiscard]] std::uint8_t* mask() { return mask_.data(); }
   [[nodiscard]] RankEntry* rank_entries() { return rank_entries_.data(); }
+  /// Second buffer of capacity() entries and the digit counts of the radix sort.
+  [[nodiscard]] RankEntry* rank_scratch() { return rank_scratch_.data(); }
+  [[nodiscard]] int* digit_counts() { return digit_counts_.data(); }
+  /// Buckets of one radix-sort digit (11 bits: six passes cover a 64-bit key).
+  static constexpr int kDigitBuckets = 1 << 11;
 
  private:
   int capacity_ = 0;
@@ -43,6 +48,8 @@ class RobustWorkspace {
   std::vector<int> order_;                 // point indices in ascending residual order
   std::vector<std::uint8_t> mask_;         // 1 = inlier, per input point
   std::vector<RankEntry> rank_entries_;    // sort scratch
+  std::vector<RankEntry> rank_scratch_;    // radix-sort ping-pong buffer
+  std::vector<int> digit_counts_;          // radix-sort bucket counts
 };
 
 }  // namespace rankslam::robust
