@@ -463,8 +463,10 @@ float organised_resolution(const cv::Mat& depth, const slam::DepthCameraModel& c
 }
 
 std::string CloudPreprocessor::configure(const slam::DepthCameraModel& camera,
-                                         const GeometryConfig& config, int max_sampled_points) {
+                                         const GeometryConfig& config, int max_sampled_points,
+                                         parallel::ThreadTeam* team) {
   max_points_ = 0;
+  team_ = team;
   if (const std::string_view bad = config.validate(); !bad.empty()) {
     return "geometry config: " + std::string(bad) + " is out of range";
   }
@@ -480,11 +482,22 @@ std::string CloudPreprocessor::configure(const slam::DepthCameraModel& camera,
   config_ = config;
   std::size_t slots = 64;
   while (slots < 2 * static_cast<std::size_t>(max_sampled_points)) slots *= 2;
-  slots_.assign(slots, Slot{});
-  recent_.assign(kRecentSlots, Slot{});
   mask_ = slots - 1;
-  generation_ = 0;
-  accumulators_.assign(static_cast<std::size_t>(max_sampled_points), Accumulator{});
+  const auto width = static_cast<std::size_t>(camera.width());
+  for (VoxelBand& band : bands_) {
+    band.generation = 0;
+    band.slots.assign(slots, Slot{});
+    band.recent.assign(kRecentSlots, Slot{});
+    band.accumulators.assign(static_cast<std::size_t>(max_sampled_points), Accumulator{});
+    band.cells.assign(static_cast<std::size_t>(max_sampled_points), Eigen::Vector3i::Zero());
+    for (std::vector<float>* row : {&band.row_x, &band.row_y, &band.row_z}) row->assign(width, 0.0F);
+    for (std::vector<std::int32_t>* row : {&band.row_cell_x, &band.row_cell_y, &band.row_cell_z}) {
+      row->assign(width, 0);
+    }
+  }
+  voxel_normals_.assign(static_cast<std::size_t>(max_sampled_points), Eigen::Vector3f::Zero());
+  voxel_curvature_.assign(static_cast<std::size_t>(max_sampled_points), 0.0F);
+  voxel_normal_support_.assign(static_cast<std::size_t>(max_sampled_points), 0);
   blocks_.reserve(camera.width(), camera.height());
   // The camera's rays as two planes (the vectorised row pass loads 8 of each at a time).
   const auto pixels = static_cast<std::size_t>(camera.width()) * static_cast<std::size_t>(camera.height());
@@ -499,9 +512,6 @@ std::string CloudPreprocessor::configure(const slam::DepthCameraModel& camera,
       ray_y_[i] = r.y();
     }
   }
-  const auto width = static_cast<std::size_t>(camera.width());
-  for (std::vector<float>* row : {&row_x_, &row_y_, &row_z_}) row->assign(width, 0.0F);
-  for (std::vector<std::int32_t>* row : {&row_cell_x_, &row_cell_y_, &row_cell_z_}) row->assign(width, 0);
   block_sums_.assign(static_cast<std::size_t>(blocks_.width) * static_cast<std::size_t>(blocks_.height),
                      BlockAccumulator{});
   max_points_ = max_sampled_points;
@@ -521,14 +531,76 @@ SampledCloud CloudPreprocessor::make_cloud() const {
 
 bool CloudPreprocessor::voxelise(const cv::Mat& depth, float leaf_m, int& voxels,
                                  int& dense_points) {
-  if (++generation_ == 0) {
-    for (Slot& slot : slots_) slot.generation = 0;
-    for (Slot& slot : recent_) slot.generation = 0;
-    generation_ = 1;
-  }
   voxels = 0;
   dense_points = 0;
   std::fill(block_sums_.begin(), block_sums_.end(), BlockAccumulator{});
+  // Bands end on block rows, so that each block's sums come from one band.
+  constexpr int kBlock = BlockImage::kBlock;
+  const int block_rows = (depth.rows + kBlock - 1) / kBlock;
+  std::array<int, kVoxelBands + 1> first_row{};
+  for (int b = 0; b <= kVoxelBands; ++b) {
+    first_row[static_cast<std::size_t>(b)] = std::min(depth.rows, block_rows * b / kVoxelBands * kBlock);
+  }
+  std::array<bool, kVoxelBands> fitted{};
+  const auto voxelise_band = [&](int b, int /*thread*/) {
+    const auto i = static_cast<std::size_t>(b);
+    fitted[i] = voxelise_rows(depth, leaf_m, first_row[i], first_row[i + 1], bands_[i]);
+  };
+  if (team_ != nullptr) {
+    team_->for_each(kVoxelBands, voxelise_band);
+  } else {
+    for (int b = 0; b < kVoxelBands; ++b) voxelise_band(b, 0);
+  }
+  VoxelBand& merged = bands_[0];
+  if (!fitted[0]) return false;
+  for (std::size_t b = 1; b < bands_.size(); ++b) {
+    if (!fitted[b]) return false;
+    const VoxelBand& band = bands_[b];
+    for (int v = 0; v < band.voxels; ++v) {
+      const int voxel = find_or_add_voxel(merged, band.cells[static_cast<std::size_t>(v)]);
+      if (voxel < 0) return false;
+      Accumulator& into = merged.accumulators[static_cast<std::size_t>(voxel)];
+      const Accumulator& from = band.accumulators[static_cast<std::size_t>(v)];
+      into.x += from.x;
+      into.y += from.y;
+      into.z += from.z;
+      into.u += from.u;
+      into.v += from.v;
+      into.count += from.count;
+    }
+    merged.dense_points += band.dense_points;
+  }
+  voxels = merged.voxels;
+  dense_points = merged.dense_points;
+  return true;
+}
+
+int CloudPreprocessor::find_or_add_voxel(VoxelBand& band, const Eigen::Vector3i& cell) {
+  std::size_t s = hash_cell(cell.x(), cell.y(), cell.z()) & mask_;
+  for (;;) {
+    Slot& slot = band.slots[s];
+    if (slot.generation != band.generation) {
+      if (band.voxels == max_points_) return -1;
+      const int voxel = band.voxels++;
+      slot = Slot{cell.x(), cell.y(), cell.z(), voxel, band.generation};
+      band.accumulators[static_cast<std::size_t>(voxel)] = Accumulator{};
+      band.cells[static_cast<std::size_t>(voxel)] = cell;
+      return voxel;
+    }
+    if (slot.x == cell.x() && slot.y == cell.y() && slot.z == cell.z()) return slot.voxel;
+    s = (s + 1) & mask_;
+  }
+}
+
+bool CloudPreprocessor::voxelise_rows(const cv::Mat& depth, float leaf_m, int row_begin,
+                                      int row_end, VoxelBand& band) {
+  if (++band.generation == 0) {
+    for (Slot& slot : band.slots) slot.generation = 0;
+    for (Slot& slot : band.recent) slot.generation = 0;
+    band.generation = 1;
+  }
+  band.voxels = 0;
+  band.dense_points = 0;
   const float inverse_leaf = 1.0F / leaf_m;
   const float metres_per_unit = camera_.metres(1);
   const auto min_m = static_cast<float>(config_.min_depth_m);
@@ -536,9 +608,10 @@ bool CloudPreprocessor::voxelise(const cv::Mat& depth, float leaf_m, int& voxels
 #ifdef RANKSLAM_GEOMETRY_HAVE_AVX2_NORMALS
   const bool avx2 = normals_cpu_has_avx2();
 #endif
-  const RowPoints row_points{row_x_.data(), row_y_.data(), row_z_.data(),
-                             row_cell_x_.data(), row_cell_y_.data(), row_cell_z_.data()};
-  for (int v = 0; v < depth.rows; ++v) {
+  const RowPoints row_points{band.row_x.data(), band.row_y.data(), band.row_z.data(),
+                             band.row_cell_x.data(), band.row_cell_y.data(), band.row_cell_z.data()};
+  const std::uint32_t generation = band.generation;
+  for (int v = row_begin; v < row_end; ++v) {
     const std::uint16_t* row = depth.ptr<std::uint16_t>(v);
     BlockAccumulator* block_row =
         block_sums_.data() + static_cast<std::ptrdiff_t>(v / BlockImage::kBlock) * blocks_.width;
@@ -561,36 +634,21 @@ bool CloudPreprocessor::voxelise(const cv::Mat& depth, float leaf_m, int& voxels
     int last_voxel = -1;
     for (int u = 0; u < depth.cols; ++u) {
       const auto i = static_cast<std::size_t>(u);
-      const float z = row_z_[i];
+      const float z = band.row_z[i];
       if (!(z > 0.0F)) continue;
-      const Eigen::Vector3f p(row_x_[i], row_y_[i], z);
-      const std::int32_t x = row_cell_x_[i];
-      const std::int32_t y = row_cell_y_[i];
-      const std::int32_t zc = row_cell_z_[i];
+      const Eigen::Vector3f p(band.row_x[i], band.row_y[i], z);
+      const std::int32_t x = band.row_cell_x[i];
+      const std::int32_t y = band.row_cell_y[i];
+      const std::int32_t zc = band.row_cell_z[i];
       int voxel = last_voxel;
       if (voxel < 0 || x != last_x || y != last_y || zc != last_z) {
-        const std::uint32_t hash = hash_cell(x, y, zc);
-        Slot& recent = recent_[hash & (kRecentSlots - 1)];
-        if (recent.generation == generation_ && recent.x == x && recent.y == y && recent.z == zc) {
+        Slot& recent = band.recent[hash_cell(x, y, zc) & (kRecentSlots - 1)];
+        if (recent.generation == generation && recent.x == x && recent.y == y && recent.z == zc) {
           voxel = recent.voxel;
         } else {
-        std::size_t s = hash & mask_;
-        for (;;) {
-          Slot& slot = slots_[s];
-          if (slot.generation != generation_) {
-            if (voxels == max_points_) return false;
-            slot = Slot{x, y, zc, voxels, generation_};
-            accumulators_[static_cast<std::size_t>(voxels)] = Accumulator{};
-            voxel = voxels++;
-            break;
-          }
-          if (slot.x == x && slot.y == y && slot.z == zc) {
-            voxel = slot.voxel;
-            break;
-          }
-          s = (s + 1) & mask_;
-        }
-        recent = Slot{x, y, zc, voxel, generation_};
+          voxel = find_or_add_voxel(band, Eigen::Vector3i(x, y, zc));
+          if (voxel < 0) return false;
+          recent = Slot{x, y, zc, voxel, generation};
         }
         last_x = x;
         last_y = y;
@@ -607,14 +665,14 @@ bool CloudPreprocessor::voxelise(const cv::Mat& depth, float leaf_m, int& voxels
       }
       b.sum += p;
       ++b.count;
-      Accumulator& a = accumulators_[static_cast<std::size_t>(voxel)];
+      Accumulator& a = band.accumulators[static_cast<std::size_t>(voxel)];
       a.x += p.x();
       a.y += p.y();
       a.z += p.z();
       a.u += static_cast<float>(u);
       a.v += static_cast<float>(v);
       ++a.count;
-      ++dense_points;
+      ++band.dense_points;
     }
   }
   return true;
@@ -736,25 +794,41 @@ GeometryStatus CloudPreprocessor::process(const cv::Mat& depth, SampledCloud& cl
     }
   }
 
+  // Each voxel's normal on whichever thread, then the voxels with enough support packed in
+  // voxel order.
+  constexpr int kVoxelsPerChunk = 64;
+  const auto fx = static_cast<float>(camera_.calibration().fx);
+  const auto estimate_normals = [&](int begin, int end, int /*thread*/) {
+    for (int i = begin; i < end; ++i) {
+      const auto k = static_cast<std::size_t>(i);
+      const Accumulator& a = bands_[0].accumulators[k];
+      const float inverse_f = 1.0F / static_cast<float>(a.count);
+      const Eigen::Vector3f center(a.x * inverse_f, a.y * inverse_f, a.z * inverse_f);
+      const Eigen::Vector2f pixel(a.u * inverse_f, a.v * inverse_f);
+      voxel_normal_support_[k] =
+          organised_normal(blocks_, fx, center, pixel, radius, config_.normal_samples_per_axis,
+                           voxel_normals_[k], &voxel_curvature_[k]);
+    }
+  };
+  if (team_ != nullptr) {
+    team_->for_chunks(voxels, kVoxelsPerChunk, estimate_normals);
+  } else {
+    estimate_normals(0, voxels, 0);
+  }
   int kept = 0;
   for (int i = 0; i < voxels; ++i) {
-    const Accumulator& a = accumulators_[static_cast<std::size_t>(i)];
-    const float inverse_f = 1.0F / static_cast<float>(a.count);
-    const Eigen::Vector3f center(a.x * inverse_f, a.y * inverse_f, a.z * inverse_f);
-    const Eigen::Vector2f pixel(a.u * inverse_f, a.v * inverse_f);
-    Eigen::Vector3f normal;
-    float curvature = 0.0F;
-    const int used = organised_normal(blocks_, static_cast<float>(camera_.calibration().fx), center, pixel, radius,
-                                      config_.normal_samples_per_axis, normal, &curvature);
-    if (used < config_.normal_min_neighbours) {
+    const auto v = static_cast<std::size_t>(i);
+    if (voxel_normal_support_[v] < config_.normal_min_neighbours) {
       ++cloud.dropped_normals;
       continue;
     }
+    const Accumulator& a = bands_[0].accumulators[v];
+    const float inverse_f = 1.0F / static_cast<float>(a.count);
     const auto k = static_cast<std::size_t>(kept++);
-    cloud.points[k] = center;
-    cloud.normals[k] = normal;
-    cloud.pixels[k] = pixel;
-    cloud.curvature[k] = curvature;
+    cloud.points[k] = Eigen::Vector3f(a.x * inverse_f, a.y * inverse_f, a.z * inverse_f);
+    cloud.normals[k] = voxel_normals_[v];
+    cloud.pixels[k] = Eigen::Vector2f(a.u * inverse_f, a.v * inverse_f);
+    cloud.curvature[k] = voxel_curvature_[v];
     cloud.dense_counts[k] = a.count;
   }
   cloud.size = kept;

@@ -12,10 +12,11 @@ namespace rankslam::geometry {
 
 namespace {
 
-// Thread CPU time in milliseconds.
-double cpu_ms() {
+// Monotonic wall-clock time in milliseconds: with a thread team a stage's work is spread over
+// threads, and its latency is what the frame waits for.
+double now_ms() {
   timespec now{};
-  clock_gettime(CLOCK_THREAD_CPUTIME_ID, &now);
+  clock_gettime(CLOCK_MONOTONIC, &now);
   return static_cast<double>(now.tv_sec) * 1e3 + static_cast<double>(now.tv_nsec) * 1e-6;
 }
 
@@ -49,8 +50,10 @@ void GeometricCorrespondences::reserve(int capacity) {
 
 std::string GeometricFrontend::configure(const slam::DepthCameraModel& camera,
                                          const GeometryConfig& config,
-                                         const FrontendCapacities& capacities) {
+                                         const FrontendCapacities& capacities,
+                                         parallel::ThreadTeam* team) {
   configured_ = false;
+  team_ = team;
   if (const std::string_view bad = config.validate(); !bad.empty()) {
     return "geometry config: " + std::string(bad) + " is out of range";
   }
@@ -64,7 +67,7 @@ std::string GeometricFrontend::configure(const slam::DepthCameraModel& camera,
   config_ = config;
   capacities_ = capacities;
   camera_ = camera;
-  if (std::string error = preprocessor_.configure(camera_, config_, capacities.max_sampled_points);
+  if (std::string error = preprocessor_.configure(camera_, config_, capacities.max_sampled_points, team);
       !error.empty()) {
     return error;
   }
@@ -76,13 +79,19 @@ std::string GeometricFrontend::configure(const slam::DepthCameraModel& camera,
   keypoints_.assign(static_cast<std::size_t>(capacities.max_keypoints), 0);
   keypoint_count_ = 0;
   support_grid_.reserve(capacities.max_sampled_points);
-  shot_.reserve(capacities.max_sampled_points);
-  if (std::string error = matcher_.configure(capacities.max_keypoints, kShotSize); !error.empty()) {
+  shots_.resize(static_cast<std::size_t>(team != nullptr ? team->size() : 1));
+  for (ShotEstimator& shot : shots_) shot.reserve(capacities.max_sampled_points);
+  described_.assign(static_cast<std::size_t>(capacities.max_keypoints), 0);
+  if (std::string error = matcher_.configure(capacities.max_keypoints, kShotSize,
+                                             DescriptorMatcher::Kernel::kBest, team);
+      !error.empty()) {
     return error;
   }
   scratch_.reserve(capacities.max_keypoints);
   rigid_ = robust::RigidModel(capacities.max_keypoints);
   workspace_.reserve(capacities.max_keypoints);
+  msse_team_.reserve(team, config_.msse_hypotheses, robust::RigidModel::kSampleSize,
+                     capacities.max_keypoints);
   if (std::string error = icp_.configure(
           camera_.calibration(),
           std::max(capacities.max_sampled_points, static_cast<int>(preprocessor_.blocks().weight.size())));
@@ -132,7 +141,7 @@ GeometryStatus GeometricFrontend::extract(const cv::Mat& depth, KeypointMethod m
     return GeometryStatus::kCapacityExceeded;
   }
   times_.cloud_ms = times_.keypoints_ms = times_.descriptors_ms = 0.0;
-  double t0 = cpu_ms();
+  double t0 = now_ms();
   GeometryStatus status = preprocessor_.process(depth, cloud_);
   out.dense_points = cloud_.dense_points;
   out.sampled_points = cloud_.size;
@@ -159,11 +168,11 @@ GeometryStatus GeometricFrontend::extract(const cv::Mat& depth, KeypointMethod m
     out.block_count = n;
   }
 
-  double t1 = cpu_ms();
+  double t1 = now_ms();
   times_.cloud_ms = t1 - t0;
   keypoint_count_ = detector_.detect(method, cloud_, keypoints_, status);
   out.keypoint_candidates = detector_.stats().candidates;
-  t0 = cpu_ms();
+  t0 = now_ms();
   times_.keypoints_ms = t0 - t1;
   if (status != GeometryStatus::kOk) return status;
 
@@ -174,14 +183,34 @@ GeometryStatus GeometricFrontend::extract(const cv::Mat& depth, KeypointMethod m
   if (!support_grid_.build(points, radius)) return GeometryStatus::kCapacityExceeded;
   const auto a = static_cast<float>(config_.depth_noise_per_m);
   const auto lateral = static_cast<float>(config_.lateral_sigma_m);
+  // Each keypoint's descriptor goes to its own slot, on whichever thread; the described ones are
+  // then packed in keypoint order, as one thread would have written them.
+  constexpr int kKeypointsPerChunk = 8;
+  const auto describe = [&](int begin, int end, int thread) {
+    ShotEstimator& shot = shots_[static_cast<std::size_t>(thread)];
+    for (int k = begin; k < end; ++k) {
+      const int index = keypoints_[static_cast<std::size_t>(k)];
+      float* descriptor = out.descriptors.data() + static_cast<std::ptrdiff_t>(k) * kShotSize;
+      described_[static_cast<std::size_t>(k)] =
+          shot.compute(points[static_cast<std::size_t>(index)], points, normals, support_grid_,
+                       radius, config_.shot_min_neighbours, descriptor) == ShotResult::kOk
+              ? 1
+              : 0;
+    }
+  };
+  if (team_ != nullptr) {
+    team_->for_chunks(keypoint_count_, kKeypointsPerChunk, describe);
+  } else {
+    describe(0, keypoint_count_, 0);
+  }
   int count = 0;
   for (int k = 0; k < keypoint_count_; ++k) {
+    if (described_[static_cast<std::size_t>(k)] == 0) continue;
     const int index = keypoints_[static_cast<std::size_t>(k)];
     const Eigen::Vector3f& p = points[static_cast<std::size_t>(index)];
-    float* descriptor = out.descriptors.data() + static_cast<std::ptrdiff_t>(count) * kShotSize;
-    if (shot_.compute(p, points, normals, support_grid_, radius, config_.shot_min_neighbours,
-                      descriptor) != ShotResult::kOk) {
-      continue;
+    if (count != k) {
+      std::copy_n(out.descriptors.data() + static_cast<std::ptrdiff_t>(k) * kShotSize, kShotSize,
+                  out.descriptors.data() + static_cast<std::ptrdiff_t>(count) * kShotSize);
     }
     const auto c = static_cast<std::size_t>(count);
     out.points_cam[c] = p;
@@ -193,7 +222,7 @@ GeometryStatus GeometricFrontend::extract(const cv::Mat& depth, KeypointMethod m
     ++count;
   }
   out.count = count;
-  times_.descriptors_ms = cpu_ms() - t0;
+  times_.descriptors_ms = now_ms() - t0;
   return count >= 3 ? GeometryStatus::kOk : GeometryStatus::kTooFewKeypoints;
 }
 
@@ -230,9 +259,9 @@ FrameRegistration GeometricFrontend::register_frames(const GeometricFeatures& pr
                                                      const Eigen::Isometry3d& T_previous_current_guess) {
   FrameRegistration registration;
   times_.matching_ms = times_.msse_ms = times_.icp_ms = 0.0;
-  double t0 = cpu_ms();
+  double t0 = now_ms();
   registration.status = correspondences(previous, current, scratch_);
-  double t1 = cpu_ms();
+  double t1 = now_ms();
   times_.matching_ms = t1 - t0;
   registration.matches = scratch_.count;
   if (registration.status == GeometryStatus::kNotConfigured ||
@@ -261,7 +290,7 @@ FrameRegistration GeometricFrontend::register_frames(const GeometricFeatures& pr
       gate.max_rotation_rad = config_.motion_gate_rotation_deg > 0.0
                                   ? config_.motion_gate_rotation_deg * 3.14159265358979323846 / 180.0
                                   : std::numeric_limits<double>::infinity();
-      const auto result = robust::estimate_msse(rigid_, msse, workspace_, sigmas, gate);
+      const auto result = robust::estimate_msse(rigid_, msse, workspace_, sigmas, gate, &msse_team_);
       if (!result.ok()) {
         registration.status = result.status == robust::RobustStatus::kTooFewPoints
                                   ? GeometryStatus::kTooFewMatches
@@ -280,7 +309,7 @@ FrameRegistration GeometricFrontend::register_frames(const GeometricFeatures& pr
     }
   }
   registration.ok = registration.msse_ok;
-  t0 = cpu_ms();
+  t0 = now_ms();
   times_.msse_ms = t0 - t1;
   if (config_.icp_iterations == 0 || previous.cloud_count < 3 || current.cloud_count < 3) {
     return registration;
@@ -343,7 +372,7 @@ FrameRegistration GeometricFrontend::register_frames(const GeometricFeatures& pr
     }
   }
   if (start == RefinementStart::kNone || best.inliers < config_.min_inliers) {
-    times_.icp_ms = cpu_ms() - t0;
+    times_.icp_ms = now_ms() - t0;
     return registration;
   }
   if (config_.icp_fine_iterations > 0) {
@@ -358,7 +387,7 @@ FrameRegistration GeometricFrontend::register_frames(const GeometricFeatures& pr
         icp_.refine(previous_cloud, current_blocks, best.T_previous_current, fine);
     if (refined.ok && refined.inliers >= config_.min_inliers) best = refined;
   }
-  times_.icp_ms = cpu_ms() - t0;
+  times_.icp_ms = now_ms() - t0;
   registration.refined_from = start;
   registration.icp_inliers = best.inliers;
   registration.icp_rms_m = best.rms_m;

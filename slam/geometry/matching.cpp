@@ -15,11 +15,14 @@ namespace rankslam::geometry {
 
 namespace {
 
+// The best so far of a block of A's rows (best_a, arg_a start at the block's first row) and of
+// every row of B over that block (arg_b holds indices into the whole of A).
 struct Best {
   float* best_a;
   int* arg_a;
   float* best_b;
   int* arg_b;
+  int row_offset;
 };
 
 // Strictly greater keeps the lower index on ties, since rows and columns are visited ascending.
@@ -30,7 +33,7 @@ inline void update(Best& best, int i, int j, float s) {
   }
   if (s > best.best_b[j]) {
     best.best_b[j] = s;
-    best.arg_b[j] = i;
+    best.arg_b[j] = i + best.row_offset;
   }
 }
 
@@ -196,7 +199,8 @@ bool DescriptorMatcher::cpu_has_avx2() {
 #endif
 }
 
-std::string DescriptorMatcher::configure(int max_descriptors, int dimension, Kernel kernel) {
+std::string DescriptorMatcher::configure(int max_descriptors, int dimension, Kernel kernel,
+                                         parallel::ThreadTeam* team) {
   capacity_ = 0;
   if (max_descriptors < 1 || max_descriptors > 1'000'000) {
     return "geometry: matcher capacity " + std::to_string(max_descriptors) + " is out of range";
@@ -205,11 +209,13 @@ std::string DescriptorMatcher::configure(int max_descriptors, int dimension, Ker
     return "geometry: descriptor dimension " + std::to_string(dimension) + " is out of range";
   }
   dimension_ = dimension;
+  team_ = team;
   const auto n = static_cast<std::size_t>(max_descriptors);
+  const auto blocks = static_cast<std::size_t>(team != nullptr ? team->size() : 1);
   best_of_a_.assign(n, 0.0F);
   arg_of_a_.assign(n, -1);
-  best_of_b_.assign(n, 0.0F);
-  arg_of_b_.assign(n, -1);
+  best_of_b_.assign(n * blocks, 0.0F);
+  arg_of_b_.assign(n * blocks, -1);
   use_avx2_ = kernel == Kernel::kBest && cpu_has_avx2();
   capacity_ = max_descriptors;
   return {};
@@ -221,21 +227,51 @@ int DescriptorMatcher::match(const float* a, int count_a, const float* b, int co
     return -1;
   }
   if (count_a == 0 || count_b == 0) return 0;
+  // A's rows in blocks, one per thread, each with its own best of B's rows; the blocks are
+  // merged in row order so that ties still go to the lower index. Block edges fall on multiples
+  // of the kernels' 4 rows, so every dot product is summed as in one pass.
+  constexpr int kRowAlignment = 4;
+  const int threads = team_ != nullptr ? team_->size() : 1;
+  const int rows_per_block =
+      ((count_a + threads - 1) / threads + kRowAlignment - 1) / kRowAlignment * kRowAlignment;
+  const int blocks = (count_a + rows_per_block - 1) / rows_per_block;
   constexpr float kLowest = -std::numeric_limits<float>::infinity();
   std::fill_n(best_of_a_.begin(), count_a, kLowest);
   std::fill_n(arg_of_a_.begin(), count_a, -1);
-  std::fill_n(best_of_b_.begin(), count_b, kLowest);
-  std::fill_n(arg_of_b_.begin(), count_b, -1);
-  Best best{best_of_a_.data(), arg_of_a_.data(), best_of_b_.data(), arg_of_b_.data()};
+  const auto scan_block = [&](int block, int /*thread*/) {
+    const int first = block * rows_per_block;
+    const int rows = std::min(rows_per_block, count_a - first);
+    const auto b_offset = static_cast<std::ptrdiff_t>(block) * capacity_;
+    std::fill_n(best_of_b_.begin() + b_offset, count_b, kLowest);
+    std::fill_n(arg_of_b_.begin() + b_offset, count_b, -1);
+    Best best{best_of_a_.data() + first, arg_of_a_.data() + first, best_of_b_.data() + b_offset,
+              arg_of_b_.data() + b_offset, first};
+    const float* rows_of_a = a + static_cast<std::ptrdiff_t>(first) * dimension_;
 #ifdef RANKSLAM_GEOMETRY_HAVE_AVX2_KERNEL
-  if (use_avx2_) {
-    scan_avx2(a, count_a, b, count_b, dimension_, best);
-  } else {
-    scan_portable(a, count_a, b, count_b, dimension_, best);
-  }
+    if (use_avx2_) {
+      scan_avx2(rows_of_a, rows, b, count_b, dimension_, best);
+    } else {
+      scan_portable(rows_of_a, rows, b, count_b, dimension_, best);
+    }
 #else
-  scan_portable(a, count_a, b, count_b, dimension_, best);
+    scan_portable(rows_of_a, rows, b, count_b, dimension_, best);
 #endif
+  };
+  if (blocks > 1) {
+    team_->for_each(blocks, scan_block);
+  } else {
+    scan_block(0, 0);
+  }
+  for (int block = 1; block < blocks; ++block) {
+    const auto b_offset = static_cast<std::ptrdiff_t>(block) * capacity_;
+    for (int j = 0; j < count_b; ++j) {
+      const auto k = static_cast<std::size_t>(j);
+      if (best_of_b_[k + static_cast<std::size_t>(b_offset)] > best_of_b_[k]) {
+        best_of_b_[k] = best_of_b_[k + static_cast<std::size_t>(b_offset)];
+        arg_of_b_[k] = arg_of_b_[k + static_cast<std::size_t>(b_offset)];
+      }
+    }
+  }
   int count = 0;
   for (int i = 0; i < count_a && count < static_cast<int>(out.size()); ++i) {
     const int j = arg_of_a_[static_cast<std::size_t>(i)];

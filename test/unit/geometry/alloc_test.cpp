@@ -46,11 +46,16 @@ TEST(GeometryAllocations, NoneInTheSteadyState) {
     frames.push_back(testing::render_depth(testing::room_corner(), testing::test_calibration(), T_world_cam, 1.4e-3,
                                            static_cast<std::uint32_t>(i + 1)));
   }
+  // On one thread and on a team of two (whose workers are counted too).
+  parallel::ThreadTeam team;
+  ASSERT_EQ(team.start(2), "");
+  for (const bool shared : {false, true})
   for (const KeypointMethod method : {KeypointMethod::kIs3d, KeypointMethod::kRos, KeypointMethod::kUniform}) {
+    SCOPED_TRACE(shared ? "team of 2" : "one thread");
     GeometryConfig config;
     config.keypoint_method = method;
     GeometricFrontend frontend;
-    ASSERT_EQ(frontend.configure(camera, config), "");
+    ASSERT_EQ(frontend.configure(camera, config, {}, shared ? &team : nullptr), "");
     GeometricFeatures previous = frontend.make_features();
     GeometricFeatures current = frontend.make_features();
     GeometricCorrespondences correspondences = frontend.make_correspondences();

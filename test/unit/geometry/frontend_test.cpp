@@ -1,3 +1,4 @@
+#include <algorithm>
 #include <cmath>
 
 #include <gtest/gtest.h>
@@ -67,6 +68,51 @@ TEST_F(FrontendTest, RegistersTwoViewsOfTheRoom) {
   const Eigen::Isometry3d error = truth.inverse() * r.T_previous_current;
   EXPECT_LT(error.translation().norm(), 0.003);
   EXPECT_LT(angle_deg(error), 0.1);
+}
+
+// With a thread team the front-end computes the same cloud, keypoints, descriptors, matches and
+// motion as on one thread, for every detector.
+TEST_F(FrontendTest, AThreadTeamGivesTheSameFeaturesAndMotion) {
+  parallel::ThreadTeam team;
+  ASSERT_EQ(team.start(2), "");
+  for (const KeypointMethod method : {KeypointMethod::kIs3d, KeypointMethod::kRos, KeypointMethod::kUniform}) {
+    SCOPED_TRACE(to_string(method));
+    GeometryConfig config = config_;
+    config.keypoint_method = method;
+    GeometricFrontend serial;
+    GeometricFrontend shared;
+    ASSERT_EQ(serial.configure(camera_, config), "");
+    ASSERT_EQ(shared.configure(camera_, config, {}, &team), "");
+    GeometricFeatures serial_a = serial.make_features();
+    GeometricFeatures serial_b = serial.make_features();
+    GeometricFeatures shared_a = shared.make_features();
+    GeometricFeatures shared_b = shared.make_features();
+    ASSERT_EQ(serial.extract(depth_a_, serial_a), GeometryStatus::kOk);
+    ASSERT_EQ(serial.extract(depth_b_, serial_b), GeometryStatus::kOk);
+    ASSERT_EQ(shared.extract(depth_a_, shared_a), GeometryStatus::kOk);
+    ASSERT_EQ(shared.extract(depth_b_, shared_b), GeometryStatus::kOk);
+    for (const auto* pair : {&serial_a, &serial_b}) {
+      const GeometricFeatures& one = *pair;
+      const GeometricFeatures& two = pair == &serial_a ? shared_a : shared_b;
+      ASSERT_EQ(one.cloud_count, two.cloud_count);
+      ASSERT_EQ(one.count, two.count);
+      for (int i = 0; i < one.cloud_count; ++i) {
+        const auto k = static_cast<std::size_t>(i);
+        ASSERT_EQ(one.cloud_points[k], two.cloud_points[k]) << "point " << i;
+        ASSERT_EQ(one.cloud_normals[k], two.cloud_normals[k]) << "normal " << i;
+      }
+      for (int i = 0; i < one.count; ++i) ASSERT_EQ(one.points_cam[static_cast<std::size_t>(i)], two.points_cam[static_cast<std::size_t>(i)]);
+      const auto size = static_cast<std::size_t>(one.count) * kShotSize;
+      EXPECT_TRUE(std::equal(one.descriptors.begin(), one.descriptors.begin() + static_cast<std::ptrdiff_t>(size),
+                             two.descriptors.begin()));
+    }
+    const FrameRegistration r1 = serial.register_frames(serial_a, serial_b);
+    const FrameRegistration r2 = shared.register_frames(shared_a, shared_b);
+    ASSERT_TRUE(r1.ok);
+    EXPECT_EQ(r1.matches, r2.matches);
+    EXPECT_EQ(r1.inliers, r2.inliers);
+    EXPECT_TRUE(r1.T_previous_current.matrix() == r2.T_previous_current.matrix());
+  }
 }
 
 TEST_F(FrontendTest, DescriptorsBringLargeMotionsIntoIcpsReach) {

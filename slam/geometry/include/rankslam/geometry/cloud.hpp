@@ -20,6 +20,7 @@
 //    these normals are as close as the dense radius-search PCA, which the sensor noise moving
 //    points in and out of the hard radius disturbs more (test/unit/geometry, normals_test).
 
+#include <array>
 #include <cstdint>
 #include <span>
 #include <string>
@@ -30,6 +31,7 @@
 
 #include "rankslam/geometry/config.hpp"
 #include "rankslam/geometry/status.hpp"
+#include "rankslam/parallel/thread_team.hpp"
 #include "rankslam/slam/camera.hpp"
 
 namespace rankslam::geometry {
@@ -114,9 +116,11 @@ float organised_resolution(const cv::Mat& depth, const slam::DepthCameraModel& c
 class CloudPreprocessor {
  public:
   /// Set-up: validates the config, sizes the hash table and the cloud for up to
-  /// max_sampled_points voxels. Returns an error message, empty on success.
+  /// max_sampled_points voxels. Returns an error message, empty on success. With a team, the
+  /// voxels' normals are shared among its threads.
   [[nodiscard]] std::string configure(const slam::DepthCameraModel& camera,
-                                      const GeometryConfig& config, int max_sampled_points);
+                                      const GeometryConfig& config, int max_sampled_points,
+                                      parallel::ThreadTeam* team = nullptr);
   [[nodiscard]] bool configured() const { return max_points_ > 0; }
   [[nodiscard]] int capacity() const { return max_points_; }
 
@@ -153,30 +157,54 @@ class CloudPreprocessor {
     float v = 0.0F;
     std::int32_t count = 0;
   };
+  // Direct-mapped cache of recently used voxels in front of the hash table: the voxels of the
+  // last few rows fit in it (L1-resident), the table does not.
+  static constexpr std::size_t kRecentSlots = 512;
+  // The voxel grid of one band of image rows: its own hash table, voxels numbered in the order
+  // they first appear in the band, their sums and cells, and one row's points and voxel
+  // coordinates (z = 0: no point), filled a row at a time (8 pixels at a time with AVX2) before
+  // the hashing pass.
+  struct VoxelBand {
+    std::uint32_t generation = 0;
+    std::vector<Slot> slots;
+    std::vector<Slot> recent;
+    std::vector<Accumulator> accumulators;
+    std::vector<Eigen::Vector3i> cells;
+    std::vector<float> row_x, row_y, row_z;
+    std::vector<std::int32_t> row_cell_x, row_cell_y, row_cell_z;
+    int voxels = 0;
+    int dense_points = 0;
+  };
+  // The image is voxelised as kVoxelBands bands of rows, concurrently with a team, then the
+  // bands are merged in row order, so the voxels keep the order of their first pixel in the
+  // image whatever the team's size.
+  static constexpr int kVoxelBands = 2;
+
   /// Splits depth-edge block `block` (block coordinates bu, bv) at split_z into its two parts.
   void split_block(const cv::Mat& depth, int bu, int bv, float split_z, std::size_t block);
-  /// Fills accumulators_; false when more than max_points_ voxels appear.
+  /// Fills band 0's accumulators with every voxel; false when more than max_points_ appear.
   bool voxelise(const cv::Mat& depth, float leaf_m, int& voxels, int& dense_points);
+  /// Voxelises image rows [row_begin, row_end) into `band`; false when its voxels exceed
+  /// max_points_.
+  bool voxelise_rows(const cv::Mat& depth, float leaf_m, int row_begin, int row_end, VoxelBand& band);
+  /// Voxel of `cell` in `band`, added (with empty sums) when new; −1 when the band is full.
+  int find_or_add_voxel(VoxelBand& band, const Eigen::Vector3i& cell);
 
   slam::DepthCameraModel camera_;
   GeometryConfig config_;
   int max_points_ = 0;
   std::size_t mask_ = 0;
-  std::uint32_t generation_ = 0;
-  std::vector<Slot> slots_;
-  // Direct-mapped cache of recently used voxels in front of the hash table: the voxels of the
-  // last few rows fit in it (L1-resident), the table does not.
-  static constexpr std::size_t kRecentSlots = 512;
-  std::vector<Slot> recent_;
-  std::vector<Accumulator> accumulators_;
+  std::array<VoxelBand, kVoxelBands> bands_;
+  // Per voxel, before the voxels without a normal are dropped.
+  std::vector<Eigen::Vector3f> voxel_normals_;
+  std::vector<float> voxel_curvature_;
+  std::vector<std::int32_t> voxel_normal_support_;
+  parallel::ThreadTeam* team_ = nullptr;
   std::vector<BlockAccumulator> block_sums_;
   BlockImage blocks_;
-  // Rays of the camera model as planes, and one image row's points and voxel coordinates (z = 0:
-  // no point), filled a row at a time (8 pixels at a time with AVX2) before the voxel pass.
+  // Rays of the camera model as planes (the vectorised row pass loads 8 of each at a time).
   // Cloud stage per frame on fr1_rpy_head (perf_geometry): 7.1 → 6.8 ms; same voxels.
   std::vector<float> ray_x_, ray_y_;
-  std::vector<float> row_x_, row_y_, row_z_;
-  std::vector<std::int32_t> row_cell_x_, row_cell_y_, row_cell_z_;
 };
 
 }  // namespace rankslam::geometry

@@ -31,14 +31,16 @@
 #include "rankslam/geometry/matching.hpp"
 #include "rankslam/geometry/shot.hpp"
 #include "rankslam/geometry/status.hpp"
+#include "rankslam/robust/msse.hpp"
 #include "rankslam/robust/rigid.hpp"
 #include "rankslam/robust/workspace.hpp"
 #include "rankslam/slam/camera.hpp"
 
 namespace rankslam::geometry {
 
-/// Thread CPU time of each stage of the last extract() / register_frames() call, milliseconds
-/// (for logs and benchmarks; CPU time, so that other processes on the machine do not count).
+/// Latency of each stage of the last extract() / register_frames() call, milliseconds, for logs
+/// and benchmarks: monotonic wall-clock time, since with a thread team a stage's work is spread
+/// over threads and its latency is what the frame waits for.
 struct StageTimes {
   double cloud_ms = 0.0;        ///< resolution, voxel grid, block means, normals
   double keypoints_ms = 0.0;    ///< ROS / IS3D / uniform selection
@@ -136,10 +138,14 @@ class GeometricFrontend {
   GeometricFrontend() = default;
 
   /// Set-up (allocates, may fail): copies the camera model and config, sizes every buffer.
-  /// Returns an error message naming the bad field, empty on success.
+  /// Returns an error message naming the bad field, empty on success. With a started team, the
+  /// per-frame loops (normals, saliency, descriptors, matching, hypotheses) are shared among its
+  /// threads; the results are the same as without. The team must outlive this front-end and be
+  /// used by one front-end call at a time.
   [[nodiscard]] std::string configure(const slam::DepthCameraModel& camera,
                                       const GeometryConfig& config,
-                                      const FrontendCapacities& capacities = {});
+                                      const FrontendCapacities& capacities = {},
+                                      parallel::ThreadTeam* team = nullptr);
   [[nodiscard]] bool configured() const { return configured_; }
   [[nodiscard]] const GeometryConfig& config() const { return config_; }
 
@@ -189,11 +195,14 @@ class GeometricFrontend {
   std::vector<int> keypoints_;
   int keypoint_count_ = 0;
   PointGrid support_grid_;
-  ShotEstimator shot_;
+  parallel::ThreadTeam* team_ = nullptr;
+  std::vector<ShotEstimator> shots_;          // one per thread of the team
+  std::vector<std::uint8_t> described_;       // per keypoint: its descriptor was computed
   DescriptorMatcher matcher_;
   GeometricCorrespondences scratch_;
   robust::RigidModel rigid_{3};
   robust::RobustWorkspace workspace_;
+  robust::MsseTeamScratch<robust::RigidModel::Params> msse_team_;
   PlaneIcp icp_;
   StageTimes times_;
 };

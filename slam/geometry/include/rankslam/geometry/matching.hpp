@@ -14,6 +14,8 @@
 #include <string>
 #include <vector>
 
+#include "rankslam/parallel/thread_team.hpp"
+
 namespace rankslam::geometry {
 
 /// One mutual match: indices into the two descriptor sets and their Euclidean distance.
@@ -30,9 +32,11 @@ class DescriptorMatcher {
     kPortable,  ///< Eigen fixed-size packets (SSE2 / NEON) only.
   };
 
-  /// Set-up (allocates): up to max_descriptors per side, `dimension` floats per descriptor.
+  /// Set-up (allocates): up to max_descriptors per side, `dimension` floats per descriptor. With
+  /// a team, each match shares A's rows among its threads (the same matches as without).
   [[nodiscard]] std::string configure(int max_descriptors, int dimension,
-                                      Kernel kernel = Kernel::kBest);
+                                      Kernel kernel = Kernel::kBest,
+                                      parallel::ThreadTeam* team = nullptr);
   [[nodiscard]] bool configured() const { return capacity_ > 0; }
 
   /// Per frame, no allocation: mutual nearest neighbours between A (count_a × dimension floats,
@@ -50,9 +54,10 @@ class DescriptorMatcher {
   int capacity_ = 0;
   bool use_avx2_ = false;
   int dimension_ = 0;
+  parallel::ThreadTeam* team_ = nullptr;
   std::vector<float> best_of_a_;  // best similarity per row of A
   std::vector<int> arg_of_a_;
-  std::vector<float> best_of_b_;
+  std::vector<float> best_of_b_;  // per block of A's rows: capacity_ values each
   std::vector<int> arg_of_b_;
 };
 
