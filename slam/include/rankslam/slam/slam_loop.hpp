@@ -284,6 +284,7 @@ class SlamLoop {
   PhotometricFeatures bridge_;
 
   // Geometric mode only (sized at construction when the mode is geometric).
+  parallel::ThreadTeam team_;  // before geometric_, which uses it until destroyed
   geometry::GeometricFrontend geometric_;
   std::array<geometry::GeometricFeatures, 2> geometric_features_;
   int geometric_previous_ = -1;
