@@ -72,7 +72,7 @@ std::string GeometricFrontend::configure(const slam::DepthCameraModel& camera,
     return error;
   }
   cloud_ = preprocessor_.make_cloud();
-  if (std::string error = detector_.configure(config_, capacities.max_sampled_points);
+  if (std::string error = detector_.configure(config_, capacities.max_sampled_points, team);
       !error.empty()) {
     return error;
   }

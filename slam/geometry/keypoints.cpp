@@ -20,8 +20,10 @@ int gross_error_count(int candidates, double fraction) {
 
 }  // namespace
 
-std::string KeypointDetector::configure(const GeometryConfig& config, int max_points) {
+std::string KeypointDetector::configure(const GeometryConfig& config, int max_points,
+                                        parallel::ThreadTeam* team) {
   max_points_ = 0;
+  team_ = team;
   if (const std::string_view bad = config.validate(); !bad.empty()) {
     return "geometry config: " + std::string(bad) + " is out of range";
   }
@@ -38,7 +40,9 @@ std::string KeypointDetector::configure(const GeometryConfig& config, int max_po
   remaining_.assign(static_cast<std::size_t>(max_points), 0);
   next_remaining_.assign(static_cast<std::size_t>(max_points), 0);
   assigned_.assign(static_cast<std::size_t>(max_points), 0);
-  candidates_.assign(static_cast<std::size_t>(max_points), 0);
+  const int threads = team != nullptr ? team->size() : 1;
+  candidates_.assign(static_cast<std::size_t>(max_points) * static_cast<std::size_t>(threads), 0);
+  orientation_team_.reserve(team, config.is3d_hypotheses, robust::OrientationModel::kSampleSize, max_points);
   ranked_.assign(static_cast<std::size_t>(max_points), {0.0F, 0});
   max_points_ = max_points;
   return {};
@@ -80,57 +84,70 @@ void KeypointDetector::compute_saliency(const SampledCloud& cloud, const std::ui
   const float cell_m = 2.0F * cloud.voxel_leaf_m;
   (void)grid_.build(cloud.point_span(), cell_m);
   const auto sorted = grid_.sorted_indices();
-  std::array<int, PointGrid::kMaxNeighbours> neighbours{};
-  std::array<float, PointGrid::kMaxNeighbours> distances{};
-  for (const PointGrid::Cell& cell : grid_.cells()) {
-    if (wanted != nullptr) {
-      bool any = false;
-      for (int m = cell.start; m < cell.start + cell.count && !any; ++m) {
-        any = wanted[static_cast<std::size_t>(sorted[static_cast<std::size_t>(m)])] != 0;
+  // Cells on whichever thread of the team, each writing the saliency of its own points.
+  const auto cells = grid_.cells();
+  const auto saliency_of_cells = [&](int first_cell, int end_cell, int thread) {
+    int* candidates_of_thread = candidates_.data() + static_cast<std::ptrdiff_t>(thread) * max_points_;
+    std::array<int, PointGrid::kMaxNeighbours> neighbours{};
+    std::array<float, PointGrid::kMaxNeighbours> distances{};
+    for (int cell_index = first_cell; cell_index < end_cell; ++cell_index) {
+      const PointGrid::Cell& cell = cells[static_cast<std::size_t>(cell_index)];
+      if (wanted != nullptr) {
+        bool any = false;
+        for (int m = cell.start; m < cell.start + cell.count && !any; ++m) {
+          any = wanted[static_cast<std::size_t>(sorted[static_cast<std::size_t>(m)])] != 0;
+        }
+        if (!any) continue;
       }
-      if (!any) continue;
-    }
-    int candidates = 0;
-    for (int dx = -1; dx <= 1; ++dx) {
-      for (int dy = -1; dy <= 1; ++dy) {
-        for (int dz = -1; dz <= 1; ++dz) {
-          const int c = grid_.find_cell(cell.x + dx, cell.y + dy, cell.z + dz);
-          if (c < 0) continue;
-          const PointGrid::Cell& other = grid_.cells()[static_cast<std::size_t>(c)];
-          for (int j = other.start; j < other.start + other.count; ++j) {
-            candidates_[static_cast<std::size_t>(candidates++)] = sorted[static_cast<std::size_t>(j)];
+      int candidates = 0;
+      for (int dx = -1; dx <= 1; ++dx) {
+        for (int dy = -1; dy <= 1; ++dy) {
+          for (int dz = -1; dz <= 1; ++dz) {
+            const int c = grid_.find_cell(cell.x + dx, cell.y + dy, cell.z + dz);
+            if (c < 0) continue;
+            const PointGrid::Cell& other = grid_.cells()[static_cast<std::size_t>(c)];
+            for (int j = other.start; j < other.start + other.count; ++j) {
+              candidates_of_thread[candidates++] = sorted[static_cast<std::size_t>(j)];
+            }
           }
         }
       }
+      const Eigen::Vector3f lo = Eigen::Vector3f(static_cast<float>(cell.x - 1), static_cast<float>(cell.y - 1),
+                                                 static_cast<float>(cell.z - 1)) * cell_m;
+      const Eigen::Vector3f hi = Eigen::Vector3f(static_cast<float>(cell.x + 2), static_cast<float>(cell.y + 2),
+                                                 static_cast<float>(cell.z + 2)) * cell_m;
+      for (int m = cell.start; m < cell.start + cell.count; ++m) {
+        const int i = sorted[static_cast<std::size_t>(m)];
+        if (wanted != nullptr && wanted[static_cast<std::size_t>(i)] == 0) continue;
+        const Eigen::Vector3f& p = cloud.points[static_cast<std::size_t>(i)];
+        int found = 0;
+        for (int c = 0; c < candidates; ++c) {
+          const int j = candidates_of_thread[c];
+          if (j == i) continue;
+          keep_nearest((cloud.points[static_cast<std::size_t>(j)] - p).squaredNorm(), j, k, found,
+                       neighbours.data(), distances.data());
+        }
+        const float margin = std::min((p - lo).minCoeff(), (hi - p).minCoeff());
+        if (found < k || distances[static_cast<std::size_t>(k - 1)] > margin * margin) {
+          found = grid_.nearest(p, k, i, kNeighbourRings, neighbours.data(), distances.data());
+        }
+        const Eigen::Vector3f& normal = cloud.normals[static_cast<std::size_t>(i)];
+        float sum = 0.0F;
+        for (int q = 0; q < found; ++q) {
+          const float angle = detail::fast_acos(
+              normal.dot(cloud.normals[static_cast<std::size_t>(neighbours[static_cast<std::size_t>(q)])]));
+          sum += angle * angle;
+        }
+        saliency_[static_cast<std::size_t>(i)] = found > 0 ? static_cast<double>(sum) / found : 0.0;
+      }
     }
-    const Eigen::Vector3f lo = Eigen::Vector3f(static_cast<float>(cell.x - 1), static_cast<float>(cell.y - 1),
-                                               static_cast<float>(cell.z - 1)) * cell_m;
-    const Eigen::Vector3f hi = Eigen::Vector3f(static_cast<float>(cell.x + 2), static_cast<float>(cell.y + 2),
-                                               static_cast<float>(cell.z + 2)) * cell_m;
-    for (int m = cell.start; m < cell.start + cell.count; ++m) {
-      const int i = sorted[static_cast<std::size_t>(m)];
-      if (wanted != nullptr && wanted[static_cast<std::size_t>(i)] == 0) continue;
-      const Eigen::Vector3f& p = cloud.points[static_cast<std::size_t>(i)];
-      int found = 0;
-      for (int c = 0; c < candidates; ++c) {
-        const int j = candidates_[static_cast<std::size_t>(c)];
-        if (j == i) continue;
-        keep_nearest((cloud.points[static_cast<std::size_t>(j)] - p).squaredNorm(), j, k, found,
-                     neighbours.data(), distances.data());
-      }
-      const float margin = std::min((p - lo).minCoeff(), (hi - p).minCoeff());
-      if (found < k || distances[static_cast<std::size_t>(k - 1)] > margin * margin) {
-        found = grid_.nearest(p, k, i, kNeighbourRings, neighbours.data(), distances.data());
-      }
-      const Eigen::Vector3f& normal = cloud.normals[static_cast<std::size_t>(i)];
-      float sum = 0.0F;
-      for (int q = 0; q < found; ++q) {
-        const float angle = detail::fast_acos(
-            normal.dot(cloud.normals[static_cast<std::size_t>(neighbours[static_cast<std::size_t>(q)])]));
-        sum += angle * angle;
-      }
-      saliency_[static_cast<std::size_t>(i)] = found > 0 ? static_cast<double>(sum) / found : 0.0;
-    }
+  };
+  constexpr int kCellsPerChunk = 32;
+  const auto cell_count = static_cast<int>(cells.size());
+  if (team_ != nullptr) {
+    team_->for_chunks(cell_count, kCellsPerChunk, saliency_of_cells);
+  } else {
+    saliency_of_cells(0, cell_count, 0);
   }
   saliency_count_ = n;
 }
@@ -192,7 +209,8 @@ int KeypointDetector::detect_is3d(const SampledCloud& cloud, std::span<int> out,
     }
     msse.seed = static_cast<std::uint64_t>(config_.seed) * 0x9e3779b97f4a7c15ULL +
                 static_cast<std::uint64_t>(stats_.orientations);
-    const auto result = robust::estimate_msse(orientation_model_, msse, workspace_);
+    const auto result = robust::estimate_msse(orientation_model_, msse, workspace_, {},
+                                              robust::AcceptAllHypotheses{}, &orientation_team_);
     if (!result.ok() || result.inlier_count < min_group || result.scale > max_scale_rad) break;
     const int o = stats_.orientations++;
     stats_.orientation[static_cast<std::size_t>(o)] = result.model;

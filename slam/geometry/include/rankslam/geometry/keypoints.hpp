@@ -15,6 +15,8 @@
 #include "rankslam/geometry/config.hpp"
 #include "rankslam/geometry/point_grid.hpp"
 #include "rankslam/geometry/status.hpp"
+#include "rankslam/parallel/thread_team.hpp"
+#include "rankslam/robust/msse.hpp"
 #include "rankslam/robust/orientation.hpp"
 #include "rankslam/robust/scalar.hpp"
 #include "rankslam/robust/workspace.hpp"
@@ -40,7 +42,10 @@ struct KeypointStats {
 class KeypointDetector {
  public:
   /// Set-up (allocates): buffers for clouds of up to max_points points. Error message or empty.
-  [[nodiscard]] std::string configure(const GeometryConfig& config, int max_points);
+  /// With a team, the saliency and IS3D's orientation hypotheses are shared among its threads
+  /// (same keypoints).
+  [[nodiscard]] std::string configure(const GeometryConfig& config, int max_points,
+                                      parallel::ThreadTeam* team = nullptr);
   [[nodiscard]] bool configured() const { return max_points_ > 0; }
 
   /// Per frame, no allocation: writes the indices (into cloud.points) of up to
@@ -73,13 +78,15 @@ class KeypointDetector {
   PointGrid grid_;
   robust::RobustWorkspace workspace_;
   robust::OrientationModel orientation_model_{1};
+  parallel::ThreadTeam* team_ = nullptr;
+  robust::MsseTeamScratch<robust::OrientationModel::Params> orientation_team_;
   Eigen::Matrix3Xd normals_;
   std::vector<double> saliency_;
   int saliency_count_ = 0;
   std::vector<int> remaining_;
   std::vector<int> next_remaining_;
   std::vector<std::uint8_t> assigned_;
-  std::vector<int> candidates_;
+  std::vector<int> candidates_;  // per thread of the team: max_points_ each
   std::vector<std::pair<float, int>> ranked_;
 };
 
