@@ -94,7 +94,8 @@ std::string GeometricFrontend::configure(const slam::DepthCameraModel& camera,
                      capacities.max_keypoints);
   if (std::string error = icp_.configure(
           camera_.calibration(),
-          std::max(capacities.max_sampled_points, static_cast<int>(preprocessor_.blocks().weight.size())));
+          std::max(capacities.max_sampled_points, static_cast<int>(preprocessor_.blocks().weight.size())),
+          team);
       !error.empty()) {
     return error;
   }

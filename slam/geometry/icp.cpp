@@ -18,8 +18,10 @@ constexpr int kMinAssociations = 12;
 
 }  // namespace
 
-std::string PlaneIcp::configure(const hal::CameraCalibration& calibration, int max_points) {
+std::string PlaneIcp::configure(const hal::CameraCalibration& calibration, int max_points,
+                                parallel::ThreadTeam* team) {
   capacity_ = 0;
+  team_ = team;
   if (max_points < kMinAssociations) return "geometry: ICP needs room for at least 12 points";
   if (calibration.width < 1 || calibration.height < 1 || !(calibration.fx > 0.0) ||
       !(calibration.fy > 0.0)) {
@@ -37,6 +39,7 @@ std::string PlaneIcp::configure(const hal::CameraCalibration& calibration, int m
   target_normal_.assign(n, Eigen::Vector3f::Zero());
   squared_residuals_.assign(n, 0.0);
   inverse_sigma_.assign(n, 1.0F);
+  associated_.assign(n, 0);
   workspace_.reserve(max_points);
   capacity_ = max_points;
   return {};
@@ -111,48 +114,73 @@ int PlaneIcp::associate(const IcpCloud& previous, const IcpCloud& current,
   const Eigen::Vector3f t = T.translation().cast<float>();
   const float max_d2 = max_distance_m * max_distance_m;
   const int n = static_cast<int>(current.points.size());
-  int count = 0;
-  for (int i = 0; i < n; i += stride) {
-    if (max_curvature_ > 0.0F && !current.curvature.empty() &&
-        current.curvature[static_cast<std::size_t>(i)] > max_curvature_) {
-      continue;
-    }
-    const Eigen::Vector3f p = R * current.points[static_cast<std::size_t>(i)] + t;
-    if (!(p.z() > 0.0F)) continue;
-    const Eigen::Vector2f px = project(p);
-    if (!(px.x() > -kCellPx) || !(px.y() > -kCellPx)) continue;
-    const int cx = static_cast<int>(std::floor(px.x() / static_cast<float>(kCellPx)));
-    const int cy = static_cast<int>(std::floor(px.y() / static_cast<float>(kCellPx)));
-    if (cx > cells_x_ || cy > cells_y_) continue;
-    int best = -1;
-    float best_d2 = max_d2;
-    for (int y = std::max(cy - 1, 0); y <= std::min(cy + 1, cells_y_ - 1); ++y) {
-      for (int x = std::max(cx - 1, 0); x <= std::min(cx + 1, cells_x_ - 1); ++x) {
-        const int cell = y * cells_x_ + x;
-        for (int k = cell_start_[static_cast<std::size_t>(cell)];
-             k < cell_start_[static_cast<std::size_t>(cell + 1)]; ++k) {
-          const int j = cell_points_[static_cast<std::size_t>(k)];
-          const float d2 = (previous.points[static_cast<std::size_t>(j)] - p).squaredNorm();
-          if (d2 <= best_d2) {
-            best_d2 = d2;
-            best = j;
+  // Sample s (current point s·stride) is associated into slot s on whichever thread, then the
+  // associated samples are packed in order.
+  const int samples = (n + stride - 1) / stride;
+  const auto associate_samples = [&](int first, int end, int /*thread*/) {
+    for (int s = first; s < end; ++s) {
+      const auto c = static_cast<std::size_t>(s);
+      associated_[c] = 0;
+      const int i = s * stride;
+      if (max_curvature_ > 0.0F && !current.curvature.empty() &&
+          current.curvature[static_cast<std::size_t>(i)] > max_curvature_) {
+        continue;
+      }
+      const Eigen::Vector3f p = R * current.points[static_cast<std::size_t>(i)] + t;
+      if (!(p.z() > 0.0F)) continue;
+      const Eigen::Vector2f px = project(p);
+      if (!(px.x() > -kCellPx) || !(px.y() > -kCellPx)) continue;
+      const int cx = static_cast<int>(std::floor(px.x() / static_cast<float>(kCellPx)));
+      const int cy = static_cast<int>(std::floor(px.y() / static_cast<float>(kCellPx)));
+      if (cx > cells_x_ || cy > cells_y_) continue;
+      int best = -1;
+      float best_d2 = max_d2;
+      for (int y = std::max(cy - 1, 0); y <= std::min(cy + 1, cells_y_ - 1); ++y) {
+        for (int x = std::max(cx - 1, 0); x <= std::min(cx + 1, cells_x_ - 1); ++x) {
+          const int cell = y * cells_x_ + x;
+          for (int k = cell_start_[static_cast<std::size_t>(cell)];
+               k < cell_start_[static_cast<std::size_t>(cell + 1)]; ++k) {
+            const int j = cell_points_[static_cast<std::size_t>(k)];
+            const float d2 = (previous.points[static_cast<std::size_t>(j)] - p).squaredNorm();
+            if (d2 <= best_d2) {
+              best_d2 = d2;
+              best = j;
+            }
           }
         }
       }
+      if (best < 0) continue;
+      associated_[c] = 1;
+      moved_[c] = p;
+      target_[c] = previous.points[static_cast<std::size_t>(best)];
+      target_normal_[c] = previous.normals[static_cast<std::size_t>(best)];
+      float inverse_sigma = 1.0F;
+      if (config.depth_noise_per_m > 0.0F) {
+        const float z = target_[c].z();
+        inverse_sigma = 1.0F / (config.depth_noise_per_m * z * z + config.noise_floor_m);
+      }
+      inverse_sigma_[c] = inverse_sigma;
+      const auto r = static_cast<double>(target_normal_[c].dot(p - target_[c]) * inverse_sigma);
+      squared_residuals_[c] = r * r;
     }
-    if (best < 0) continue;
-    const auto c = static_cast<std::size_t>(count++);
-    moved_[c] = p;
-    target_[c] = previous.points[static_cast<std::size_t>(best)];
-    target_normal_[c] = previous.normals[static_cast<std::size_t>(best)];
-    float inverse_sigma = 1.0F;
-    if (config.depth_noise_per_m > 0.0F) {
-      const float z = target_[c].z();
-      inverse_sigma = 1.0F / (config.depth_noise_per_m * z * z + config.noise_floor_m);
-    }
-    inverse_sigma_[c] = inverse_sigma;
-    const auto r = static_cast<double>(target_normal_[c].dot(p - target_[c]) * inverse_sigma);
-    squared_residuals_[c] = r * r;
+  };
+  constexpr int kSamplesPerChunk = 128;
+  if (team_ != nullptr) {
+    team_->for_chunks(samples, kSamplesPerChunk, associate_samples);
+  } else {
+    associate_samples(0, samples, 0);
+  }
+  int count = 0;
+  for (int s = 0; s < samples; ++s) {
+    const auto from = static_cast<std::size_t>(s);
+    if (associated_[from] == 0) continue;
+    const auto to = static_cast<std::size_t>(count++);
+    if (to == from) continue;
+    moved_[to] = moved_[from];
+    target_[to] = target_[from];
+    target_normal_[to] = target_normal_[from];
+    inverse_sigma_[to] = inverse_sigma_[from];
+    squared_residuals_[to] = squared_residuals_[from];
   }
   return count;
 }

@@ -12,6 +12,7 @@
 // cells of 8 × 8 pixels around it. The residuals are segmented by MSSE (scalar model, p = 6) in
 // every iteration, so occluded and unmatched points are rejected without a fixed threshold.
 
+#include <cstdint>
 #include <span>
 #include <string>
 #include <vector>
@@ -20,6 +21,7 @@
 #include <Eigen/Geometry>
 
 #include "rankslam/hal/calibration.hpp"
+#include "rankslam/parallel/thread_team.hpp"
 #include "rankslam/robust/workspace.hpp"
 
 namespace rankslam::geometry {
@@ -62,7 +64,9 @@ struct IcpCloud {
 class PlaneIcp {
  public:
   /// Set-up (allocates): clouds of up to max_points, images of the calibration's size.
-  [[nodiscard]] std::string configure(const hal::CameraCalibration& calibration, int max_points);
+  /// With a team, the associations are searched on all its threads (the same associations).
+  [[nodiscard]] std::string configure(const hal::CameraCalibration& calibration, int max_points,
+                                      parallel::ThreadTeam* team = nullptr);
   [[nodiscard]] bool configured() const { return capacity_ > 0; }
 
   /// Per frame, no allocation: refines T_previous_current from `initial`.
@@ -96,6 +100,8 @@ class PlaneIcp {
   std::vector<Eigen::Vector3f> target_normal_;
   std::vector<double> squared_residuals_;  // normalised by σ² when weighting
   std::vector<float> inverse_sigma_;
+  std::vector<std::uint8_t> associated_;  // per sampled current point, before packing
+  parallel::ThreadTeam* team_ = nullptr;
   robust::RobustWorkspace workspace_;
 };
 
