@@ -51,12 +51,17 @@ struct MotionEstimator::Impl {
   Eigen::Matrix3Xd source;
   Eigen::Matrix3Xd target;
   std::vector<double> refit_weights;
+  robust::MsseTeamScratch<robust::RigidModel::Params> team;
 };
 
 MotionEstimator::MotionEstimator(const SlamConfig& config, std::size_t max_points)
     : impl_(std::make_unique<Impl>(config, max_points)) {}
 
 MotionEstimator::~MotionEstimator() = default;
+
+void MotionEstimator::share_with(parallel::ThreadTeam* team) {
+  impl_->team.reserve(team, impl_->msse.hypotheses, robust::RigidModel::kSampleSize, impl_->capacity);
+}
 
 MotionEstimate MotionEstimator::estimate(std::span<const Eigen::Vector3f> source,
                                          std::span<const Eigen::Vector3f> target, std::span<const double> sigma_m,
@@ -98,7 +103,8 @@ MotionEstimate MotionEstimator::estimate(std::span<const Eigen::Vector3f> source
     return estimate;
   }
 
-  const auto result = robust::estimate_msse(impl.model, impl.msse, impl.workspace, sigma_m);
+  const auto result = robust::estimate_msse(impl.model, impl.msse, impl.workspace, sigma_m,
+                                            robust::AcceptAllHypotheses{}, &impl.team);
   if (!result.ok()) {
     estimate.failure_reason = robust::to_string(result.status);
     return estimate;
@@ -126,7 +132,8 @@ MotionEstimate MotionEstimator::estimate(std::span<const Eigen::Vector3f> source
     if (impl.model.set_correspondences(
             impl.source.leftCols(n), impl.target.leftCols(n),
             std::span<const double>(impl.refit_weights.data(), static_cast<std::size_t>(n))) == robust::RobustStatus::kOk) {
-      const auto metric = robust::estimate_msse(impl.model, impl.msse, impl.workspace);
+      const auto metric = robust::estimate_msse(impl.model, impl.msse, impl.workspace, {},
+                                                robust::AcceptAllHypotheses{}, &impl.team);
       if (metric.ok() && impl.disagreement(metric.model, *T_target_source_predicted, n) <
                              impl.disagreement(first, *T_target_source_predicted, n)) {
         estimate.T_target_source = metric.model;

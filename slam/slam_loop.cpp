@@ -176,10 +176,11 @@ SlamLoop::SlamLoop(const SlamConfig& config, const hal::Calibration& calibration
   // OpenCV sets up its parallel framework (worker threads, thread-local storage) in the first
   // parallel call of the process and thread, which would otherwise be the first frame's cvtColor.
   cv::cvtColor(cv::Mat(camera_.height(), camera_.width(), CV_8UC3, cv::Scalar::all(0)), gray_, cv::COLOR_BGR2GRAY);
+  if (const std::string error = team_.start(config_.threads); !error.empty()) {
+    throw std::invalid_argument("slam.threads: " + error);
+  }
+  estimator_.share_with(&team_);
   if (config_.mode == Mode::kGeometric || config_.mode == Mode::kFused) {
-    if (const std::string error = team_.start(config_.threads); !error.empty()) {
-      throw std::invalid_argument("slam.threads: " + error);
-    }
     if (const std::string error = geometric_.configure(camera_, config_.geometry, {}, &team_); !error.empty()) {
       throw std::invalid_argument(error);
     }

@@ -166,9 +166,10 @@ struct SlamConfig {
   // Stored key-frames (features, map points, graph node); when full, one far from the camera with
   // the fewest loop closures is retired (KeyframeStore::retirement_candidate). About 0.8 MB each.
   int keyframe_capacity = 128;
-  // Threads that share the geometric front-end's per-frame loops (geometric and fused modes),
-  // the tracking thread included: the robot computer's two cores. 1 keeps all on the tracking
-  // thread. The estimates are the same for any count.
+  // Threads that share the per-frame loops (MSSE's hypotheses; the geometric front-end's cloud,
+  // keypoints, descriptors, matching and ICP), the tracking thread included: the robot
+  // computer's two cores. 1 keeps all on the tracking thread. The estimates are the same for any
+  // count.
   int threads = 2;
   // Loop-closure candidates: stored key-frames other than the last loop_min_keyframe_gap, within
   // loop_search_radius_m / loop_search_rotation_deg of the new key-frame, both bounds widened by
@@ -276,7 +277,7 @@ struct SlamConfig {
     visit("fused_icp_below_photometric_inliers", fused_icp_below_photometric_inliers, 0, 100000, "",
           "fused mode: fewer photometric inliers than this call for the geometric ICP refinement (0: never)");
     visit("keyframe_capacity", keyframe_capacity, 2, 65536, "", "key-frames the back-end stores (about 0.8 MB each)");
-    visit("threads", threads, 1, 8, "", "threads sharing the geometric front-end's loops, the tracking thread included");
+    visit("threads", threads, 1, 8, "", "threads sharing the per-frame loops, the tracking thread included");
     visit("loop_min_keyframe_gap", loop_min_keyframe_gap, 1, 10000, "",
           "the most recent key-frames are not loop-closure candidates");
     visit("loop_search_radius_m", loop_search_radius_m, 0.0, 100.0, "m", "loop-closure candidates lie this close");

@@ -1,5 +1,6 @@
 #pragma once
 
+#include "rankslam/parallel/thread_team.hpp"
 #include "rankslam/slam/config.hpp"
 
 #include <Eigen/Geometry>
@@ -25,6 +26,9 @@ class MotionEstimator {
   MotionEstimator(const SlamConfig& config, std::size_t max_points);
   ~MotionEstimator();
   MotionEstimator(const MotionEstimator&) = delete;
+  /// Set-up (allocates): shares MSSE's hypotheses among the threads of `team` from now on (the
+  /// same estimates). The team must outlive this estimator.
+  void share_with(parallel::ThreadTeam* team);
   MotionEstimator& operator=(const MotionEstimator&) = delete;
 
   /// `sigma_m`, when not empty, is each correspondence's predicted residual noise; MSSE then

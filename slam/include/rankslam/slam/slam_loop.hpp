@@ -261,6 +261,7 @@ class SlamLoop {
   OrbFrontend orb_;
   OrbFrontend infrared_orb_;
   MutualHammingMatcher matcher_;
+  parallel::ThreadTeam team_;  // before the estimator and front-ends that use it
   MotionEstimator estimator_;
   PointMap map_;
   InfraredFilter infrared_filter_;
@@ -284,7 +285,6 @@ class SlamLoop {
   PhotometricFeatures bridge_;
 
   // Geometric mode only (sized at construction when the mode is geometric).
-  parallel::ThreadTeam team_;  // before geometric_, which uses it until destroyed
   geometry::GeometricFrontend geometric_;
   std::array<geometry::GeometricFeatures, 2> geometric_features_;
   int geometric_previous_ = -1;
