@@ -434,32 +434,80 @@ int organised_normal(const BlockImage& blocks, float fx, const Eigen::Vector3f& 
   return count;
 }
 
+namespace {
+
+// The distance from each sampled pixel of row v (every stride-th from u = 1) to its nearest
+// valid 8-neighbour in 3D, NaN where the pixel or all its neighbours are invalid.
+void nearest_neighbour_distances(const cv::Mat& depth, const slam::DepthCameraModel& camera,
+                                 const DepthRange& range, int v, int stride, double* out) {
+  int k = 0;
+  for (int u = 1; u + 1 < depth.cols; u += stride, ++k) {
+    out[k] = std::numeric_limits<double>::quiet_NaN();
+    Eigen::Vector3f p;
+    if (!point_at(depth, camera, range, u, v, p)) continue;
+    float best = std::numeric_limits<float>::infinity();
+    for (int dv = -1; dv <= 1; ++dv) {
+      for (int du = -1; du <= 1; ++du) {
+        if (du == 0 && dv == 0) continue;
+        Eigen::Vector3f q;
+        if (!point_at(depth, camera, range, u + du, v + dv, q)) continue;
+        best = std::min(best, (q - p).squaredNorm());
+      }
+    }
+    if (std::isfinite(best)) out[k] = std::sqrt(static_cast<double>(best));
+  }
+}
+
+int sampled_rows(int rows, int stride) { return rows > 2 ? (rows - 2 + stride - 1) / stride : 0; }
+int sampled_columns(int cols, int stride) { return cols > 2 ? (cols - 2 + stride - 1) / stride : 0; }
+
+// The mean of the finite distances, summed in image order.
+float mean_of_finite(const double* distances, std::size_t count) {
+  double sum = 0.0;
+  long finite = 0;
+  for (std::size_t i = 0; i < count; ++i) {
+    if (std::isnan(distances[i])) continue;
+    sum += distances[i];
+    ++finite;
+  }
+  return finite > 0 ? static_cast<float>(sum / static_cast<double>(finite)) : 0.0F;
+}
+
+}  // namespace
+
 float organised_resolution(const cv::Mat& depth, const slam::DepthCameraModel& camera, int stride,
                            float min_depth_m, float max_depth_m) {
   const DepthRange range{min_depth_m, max_depth_m, camera.metres(1)};
   stride = std::max(1, stride);
-  double sum = 0.0;
-  long count = 0;
-  for (int v = 1; v + 1 < depth.rows; v += stride) {
-    for (int u = 1; u + 1 < depth.cols; u += stride) {
-      Eigen::Vector3f p;
-      if (!point_at(depth, camera, range, u, v, p)) continue;
-      float best = std::numeric_limits<float>::infinity();
-      for (int dv = -1; dv <= 1; ++dv) {
-        for (int du = -1; du <= 1; ++du) {
-          if (du == 0 && dv == 0) continue;
-          Eigen::Vector3f q;
-          if (!point_at(depth, camera, range, u + du, v + dv, q)) continue;
-          best = std::min(best, (q - p).squaredNorm());
-        }
-      }
-      if (std::isfinite(best)) {
-        sum += std::sqrt(static_cast<double>(best));
-        ++count;
-      }
-    }
+  const int rows = sampled_rows(depth.rows, stride);
+  const int columns = sampled_columns(depth.cols, stride);
+  std::vector<double> distances(static_cast<std::size_t>(rows) * static_cast<std::size_t>(columns));
+  for (int r = 0; r < rows; ++r) {
+    nearest_neighbour_distances(depth, camera, range, 1 + r * stride, stride,
+                                distances.data() + static_cast<std::ptrdiff_t>(r) * columns);
   }
-  return count > 0 ? static_cast<float>(sum / static_cast<double>(count)) : 0.0F;
+  return mean_of_finite(distances.data(), distances.size());
+}
+
+float CloudPreprocessor::resolution(const cv::Mat& depth) {
+  const DepthRange range{static_cast<float>(config_.min_depth_m), static_cast<float>(config_.max_depth_m),
+                         camera_.metres(1)};
+  const int stride = std::max(1, config_.resolution_pixel_stride);
+  const int rows = sampled_rows(depth.rows, stride);
+  const int columns = sampled_columns(depth.cols, stride);
+  const auto rows_of_distances = [&](int first, int end, int /*thread*/) {
+    for (int r = first; r < end; ++r) {
+      nearest_neighbour_distances(depth, camera_, range, 1 + r * stride, stride,
+                                  neighbour_distances_.data() + static_cast<std::ptrdiff_t>(r) * columns);
+    }
+  };
+  constexpr int kRowsPerChunk = 8;
+  if (team_ != nullptr) {
+    team_->for_chunks(rows, kRowsPerChunk, rows_of_distances);
+  } else {
+    rows_of_distances(0, rows, 0);
+  }
+  return mean_of_finite(neighbour_distances_.data(), static_cast<std::size_t>(rows) * static_cast<std::size_t>(columns));
 }
 
 std::string CloudPreprocessor::configure(const slam::DepthCameraModel& camera,
@@ -498,6 +546,12 @@ std::string CloudPreprocessor::configure(const slam::DepthCameraModel& camera,
   voxel_normals_.assign(static_cast<std::size_t>(max_sampled_points), Eigen::Vector3f::Zero());
   voxel_curvature_.assign(static_cast<std::size_t>(max_sampled_points), 0.0F);
   voxel_normal_support_.assign(static_cast<std::size_t>(max_sampled_points), 0);
+  {
+    const int stride = std::max(1, config.resolution_pixel_stride);
+    neighbour_distances_.assign(static_cast<std::size_t>(sampled_rows(camera.height(), stride)) *
+                                    static_cast<std::size_t>(sampled_columns(camera.width(), stride)),
+                                0.0);
+  }
   blocks_.reserve(camera.width(), camera.height());
   // The camera's rays as two planes (the vectorised row pass loads 8 of each at a time).
   const auto pixels = static_cast<std::size_t>(camera.width()) * static_cast<std::size_t>(camera.height());
@@ -733,10 +787,7 @@ GeometryStatus CloudPreprocessor::process(const cv::Mat& depth, SampledCloud& cl
       static_cast<int>(cloud.dense_counts.size()) < max_points_) {
     return GeometryStatus::kCapacityExceeded;
   }
-  const auto min_m = static_cast<float>(config_.min_depth_m);
-  const auto max_m = static_cast<float>(config_.max_depth_m);
-  const float phi =
-      organised_resolution(depth, camera_, config_.resolution_pixel_stride, min_m, max_m);
+  const float phi = resolution(depth);
   cloud.resolution_m = phi;
   if (!(phi > 0.0F)) return GeometryStatus::kTooFewPoints;
   float leaf = std::clamp(static_cast<float>(config_.voxel_leaf_factor) * phi,

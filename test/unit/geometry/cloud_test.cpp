@@ -70,6 +70,17 @@ TEST_F(CloudTest, ResolutionMatchesTheExactMeanNearestNeighbourDistance) {
   const double exact = sum / static_cast<double>(dense.pts.size());
   const double organised = organised_resolution(depth_, camera_, config_.resolution_pixel_stride, 0.0F, 4.0F);
   EXPECT_NEAR(organised, exact, 0.03 * exact) << "exact " << exact;
+  // The preprocessor's estimate, its rows on a thread team, is the same value.
+  parallel::ThreadTeam team;
+  ASSERT_EQ(team.start(2), "");
+  CloudPreprocessor shared;
+  GeometryConfig config = config_;
+  config.min_depth_m = 0.0;
+  config.max_depth_m = 4.0;
+  ASSERT_EQ(shared.configure(camera_, config, 16384, &team), "");
+  SampledCloud cloud = shared.make_cloud();
+  ASSERT_EQ(shared.process(depth_, cloud), GeometryStatus::kOk);
+  EXPECT_EQ(cloud.resolution_m, static_cast<float>(organised));
 }
 
 TEST_F(CloudTest, VoxelCentroidsMatchABruteForceVoxelGrid) {

@@ -108,7 +108,7 @@ int organised_normal(const BlockImage& blocks, float fx, const Eigen::Vector3f& 
                      Eigen::Vector3f& normal, float* curvature = nullptr, bool best_kernel = true);
 
 /// Mean nearest-neighbour distance of the pass-through cloud, estimated on every stride-th pixel
-/// from its 8 image neighbours; 0 when no pixel has a valid neighbour.
+/// from its 8 image neighbours; 0 when no pixel has a valid neighbour. Allocates (tests, tools).
 float organised_resolution(const cv::Mat& depth, const slam::DepthCameraModel& camera, int stride,
                            float min_depth_m, float max_depth_m);
 
@@ -182,6 +182,9 @@ class CloudPreprocessor {
 
   /// Splits depth-edge block `block` (block coordinates bu, bv) at split_z into its two parts.
   void split_block(const cv::Mat& depth, int bu, int bv, float split_z, std::size_t block);
+  /// organised_resolution() of the depth image with this preprocessor's settings, its rows on
+  /// the team's threads (the same value).
+  float resolution(const cv::Mat& depth);
   /// Fills band 0's accumulators with every voxel; false when more than max_points_ appear.
   bool voxelise(const cv::Mat& depth, float leaf_m, int& voxels, int& dense_points);
   /// Voxelises image rows [row_begin, row_end) into `band`; false when its voxels exceed
@@ -199,6 +202,7 @@ class CloudPreprocessor {
   std::vector<Eigen::Vector3f> voxel_normals_;
   std::vector<float> voxel_curvature_;
   std::vector<std::int32_t> voxel_normal_support_;
+  std::vector<double> neighbour_distances_;  // per sampled pixel of the resolution estimate
   parallel::ThreadTeam* team_ = nullptr;
   std::vector<BlockAccumulator> block_sums_;
   BlockImage blocks_;
