@@ -33,6 +33,11 @@ std::string_view GeometryConfig::validate() const {
     case Is3dRanking::kNearestToOrientations: break;
     default: return "is3d_ranking";
   }
+  switch (ros_selection) {
+    case RosSelection::kMostSalient:
+    case RosSelection::kFirstPastTransition: break;
+    default: return "ros_selection";
+  }
   return {};
 }
 

@@ -174,8 +174,12 @@ int KeypointDetector::detect_ros(const SampledCloud& cloud, std::span<int> out,
   const int group2 = n - k_star;
   const int usable = std::max(0, group2 - gross_error_count(group2, config_.gross_error_fraction));
   const int count = std::min(usable, config_.max_keypoints);
+  // RosSelection: the most salient of the usable range (its top end, downwards) or, as the
+  // thesis words it, its first values past the transition.
+  const bool most_salient = config_.ros_selection == RosSelection::kMostSalient;
   for (int i = 0; i < count; ++i) {
-    out[static_cast<std::size_t>(i)] = result.ordered[static_cast<std::size_t>(k_star + i)];
+    const int rank = most_salient ? k_star + usable - 1 - i : k_star + i;
+    out[static_cast<std::size_t>(i)] = result.ordered[static_cast<std::size_t>(rank)];
   }
   stats_.candidates = group2;
   stats_.transition = k_star;
@@ -257,11 +261,12 @@ int KeypointDetector::detect_is3d(const SampledCloud& cloud, std::span<int> out,
   int first = 0;
   int usable = remaining;
   if (by_saliency || config_.is3d_ranking == Is3dRanking::kFarthestFromOrientations) {
-    // Descending score, ties by index; the largest values are likely gross errors.
+    // Descending score, ties by index; is3d_gross_error_fraction of the largest are dropped
+    // (none by default: see the parameter).
     std::sort(begin, end, [](const auto& a, const auto& b) {
       return a.first > b.first || (a.first == b.first && a.second < b.second);
     });
-    first = std::min(remaining, gross_error_count(remaining, config_.gross_error_fraction));
+    first = std::min(remaining, gross_error_count(remaining, config_.is3d_gross_error_fraction));
     usable = remaining - first;
   } else {
     std::sort(begin, end, [](const auto& a, const auto& b) {

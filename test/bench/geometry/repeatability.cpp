@@ -94,11 +94,16 @@ struct Accumulator {
   int pairs = 0;
   double angle_sum_deg = 0.0;
 
+  std::vector<std::array<double, kMethodCount>> per_pair;
+
   void add(const FrameKeypoints& source, const FrameKeypoints& target,
            const Eigen::Isometry3d& T_target_source) {
+    std::array<double, kMethodCount>& pair = per_pair.emplace_back();
+    pair.fill(-1.0);
     for (int m = 0; m < kMethodCount; ++m) {
       if (m == kMethodIss && !have_iss()) continue;
       const double r = relative_repeatability(source, target, T_target_source, m);
+      pair[static_cast<std::size_t>(m)] = r;
       if (r >= 0.0) {
         sum[static_cast<std::size_t>(m)] += r;
         ++valid[static_cast<std::size_t>(m)];
@@ -116,6 +121,7 @@ struct Accumulator {
     r.set = set;
     r.misalignment_deg = nominal_deg >= 0.0 ? nominal_deg : (pairs > 0 ? angle_sum_deg / pairs : 0.0);
     r.pairs = pairs;
+    r.per_pair = per_pair;
     for (std::size_t m = 0; m < kMethodCount; ++m) {
       r.repeatability[m] = valid[m] > 0 ? sum[m] / valid[m] : -1.0;
       r.keypoints[m] = pairs > 0 ? keypoints[m] / pairs : 0.0;
@@ -321,6 +327,29 @@ std::string run_repeatability(const RepeatabilityOptions& options,
   return {};
 }
 
+PairedLead paired_lead(const RepeatabilityRow& row, int method, int other) {
+  PairedLead lead;
+  double sum = 0.0;
+  double sum_sq = 0.0;
+  for (const auto& pair : row.per_pair) {
+    const double a = pair[static_cast<std::size_t>(method)];
+    const double b = pair[static_cast<std::size_t>(other)];
+    if (a < 0.0 || b < 0.0) continue;
+    const double d = 100.0 * (a - b);
+    sum += d;
+    sum_sq += d * d;
+    ++lead.pairs;
+  }
+  if (lead.pairs == 0) return lead;
+  const double n = lead.pairs;
+  lead.mean_points = sum / n;
+  if (lead.pairs > 1) {
+    const double variance = std::max(0.0, (sum_sq - n * lead.mean_points * lead.mean_points) / (n - 1.0));
+    lead.standard_error_points = std::sqrt(variance / n);
+  }
+  return lead;
+}
+
 std::string format_repeatability_table(const std::vector<RepeatabilityRow>& rows) {
   std::string out;
   char line[256];
@@ -339,6 +368,31 @@ std::string format_repeatability_table(const std::vector<RepeatabilityRow>& rows
         std::snprintf(line, sizeof line, " %17s", "n/a");
       } else {
         std::snprintf(line, sizeof line, "   %5.1f %% (%4.0f kp)", 100.0 * row.repeatability[m], row.keypoints[m]);
+      }
+      out += line;
+    }
+    out += "\n";
+  }
+  constexpr std::array<std::array<int, 2>, 3> kLeads = {
+      {{kMethodIs3d, kMethodRos}, {kMethodRos, kMethodUniform}, {kMethodIs3d, kMethodIss}}};
+  std::snprintf(line, sizeof line, "\npaired lead, points (mean ± standard error over the pairs)\n%-18s %9s", "pairs",
+                "rotation");
+  out += line;
+  for (const auto& lead : kLeads) {
+    const std::string name = std::string(method_name(lead[0])) + " - " + method_name(lead[1]);
+    std::snprintf(line, sizeof line, " %21s", name.c_str());
+    out += line;
+  }
+  out += "\n";
+  for (const RepeatabilityRow& row : rows) {
+    std::snprintf(line, sizeof line, "%-18s %8.1f°", row.set.c_str(), row.misalignment_deg);
+    out += line;
+    for (const auto& lead : kLeads) {
+      const PairedLead l = paired_lead(row, lead[0], lead[1]);
+      if (l.pairs == 0) {
+        std::snprintf(line, sizeof line, " %21s", "n/a");
+      } else {
+        std::snprintf(line, sizeof line, "         %+6.1f ± %4.1f", l.mean_points, l.standard_error_points);
       }
       out += line;
     }

@@ -52,7 +52,19 @@ struct RepeatabilityRow {
   int pairs = 0;
   std::array<double, kMethodCount> repeatability{};  ///< mean relative repeatability, −1 = n/a
   std::array<double, kMethodCount> keypoints{};      ///< mean keypoints per frame
+  /// Each pair's relative repeatability per method (−1 = n/a), for paired comparisons.
+  std::vector<std::array<double, kMethodCount>> per_pair;
 };
+
+/// How far `method` leads `other` on a row's pairs: mean and standard error of the mean of the
+/// per-pair differences (percentage points), over the pairs where both were measured. The pairs
+/// share their scene and noise, so the paired spread is the noise an ordering has to clear.
+struct PairedLead {
+  double mean_points = 0.0;
+  double standard_error_points = 0.0;
+  int pairs = 0;
+};
+[[nodiscard]] PairedLead paired_lead(const RepeatabilityRow& row, int method, int other);
 
 struct RepeatabilityOptions {
   GeometryConfig config;
@@ -79,7 +91,8 @@ struct RepeatabilityOptions {
 [[nodiscard]] std::string run_repeatability(const RepeatabilityOptions& options,
                                             std::vector<RepeatabilityRow>& rows);
 
-/// The rows as an aligned text table.
+/// The rows as an aligned text table, then the paired leads IS3D − ROS, ROS − uniform and
+/// IS3D − ISS per row.
 [[nodiscard]] std::string format_repeatability_table(const std::vector<RepeatabilityRow>& rows);
 
 }  // namespace rankslam::geometry::bench

@@ -3,7 +3,8 @@
 // repeatability.hpp for the construction). Prints a table.
 //
 //   repeatability [--scene NAME]... [--frames N] [--pairs N] [--no-real]
-//                 [--ranking saliency|farthest|nearest] [--set parameter=value]...
+//                 [--ranking saliency|farthest|nearest] [--ros salient|first]
+//                 [--set parameter=value]...
 
 #include <cstdio>
 #include <cstdlib>
@@ -35,6 +36,10 @@ int main(int argc, char** argv) {
                                         : std::strcmp(argv[i], "farthest") == 0
                                               ? rankslam::geometry::Is3dRanking::kFarthestFromOrientations
                                               : rankslam::geometry::Is3dRanking::kLocalSaliency;
+    } else if (arg == "--ros" && i + 1 < argc) {
+      options.config.ros_selection = std::strcmp(argv[++i], "first") == 0
+                                         ? rankslam::geometry::RosSelection::kFirstPastTransition
+                                         : rankslam::geometry::RosSelection::kMostSalient;
     } else if (arg == "--set" && i + 1 < argc) {
       const std::string kv = argv[++i];
       const auto eq = kv.find('=');
@@ -56,7 +61,8 @@ int main(int argc, char** argv) {
     } else {
       std::fprintf(stderr,
                    "usage: %s [--scene NAME]... [--frames N] [--pairs N] [--no-real] "
-                   "[--ranking saliency|farthest|nearest] [--set parameter=value]...\n",
+                   "[--ranking saliency|farthest|nearest] [--ros salient|first] "
+                   "[--set parameter=value]...\n",
                    argv[0]);
       return 2;
     }

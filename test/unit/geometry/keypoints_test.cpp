@@ -77,28 +77,32 @@ class KeypointTest : public ::testing::Test {
 };
 
 TEST_F(KeypointTest, RosKeepsSalientPointsPastTheTransition) {
-  GeometryStatus status = GeometryStatus::kNotConfigured;
-  const int count = detector_.detect(KeypointMethod::kRos, cloud_, keypoints_, status);
-  ASSERT_EQ(status, GeometryStatus::kOk);
-  const KeypointStats& stats = detector_.stats();
-  EXPECT_GT(stats.transition, cloud_.size / 5);  // k* ≥ k0 = 20 %
-  EXPECT_EQ(stats.candidates, cloud_.size - stats.transition);
-  EXPECT_EQ(count, std::min(config_.max_keypoints,
-                            stats.candidates - static_cast<int>(std::ceil(0.05 * stats.candidates))));
-  // Keypoints come in ascending saliency from just past the transition.
-  const auto saliency = detector_.saliency();
-  double flat_max = 0.0;
-  std::vector<double> sorted(saliency.begin(), saliency.end());
-  std::sort(sorted.begin(), sorted.end());
-  flat_max = sorted[static_cast<std::size_t>(stats.transition - 1)];
-  for (int k = 0; k < count; ++k) {
-    EXPECT_GE(saliency[static_cast<std::size_t>(keypoints_[static_cast<std::size_t>(k)])], flat_max);
-    if (k > 0) {
-      EXPECT_GE(saliency[static_cast<std::size_t>(keypoints_[static_cast<std::size_t>(k)])],
-                saliency[static_cast<std::size_t>(keypoints_[static_cast<std::size_t>(k - 1)])]);
+  for (const RosSelection selection : {RosSelection::kMostSalient, RosSelection::kFirstPastTransition}) {
+    SCOPED_TRACE(to_string(selection));
+    config_.ros_selection = selection;
+    ASSERT_EQ(detector_.configure(config_, 16384), "");
+    GeometryStatus status = GeometryStatus::kNotConfigured;
+    const int count = detector_.detect(KeypointMethod::kRos, cloud_, keypoints_, status);
+    ASSERT_EQ(status, GeometryStatus::kOk);
+    const KeypointStats& stats = detector_.stats();
+    EXPECT_GT(stats.transition, cloud_.size / 5);  // k* ≥ k0 = 20 %
+    EXPECT_EQ(stats.candidates, cloud_.size - stats.transition);
+    const int usable = stats.candidates - static_cast<int>(std::ceil(0.05 * stats.candidates));
+    EXPECT_EQ(count, std::min(config_.max_keypoints, usable));
+    // Past the transition, below the gross-error cut: the most salient downwards, or the first
+    // values past the transition upwards.
+    const auto saliency = detector_.saliency();
+    std::vector<double> sorted(saliency.begin(), saliency.end());
+    std::sort(sorted.begin(), sorted.end());
+    for (int k = 0; k < count; ++k) {
+      const int rank = selection == RosSelection::kMostSalient ? stats.transition + usable - 1 - k
+                                                                : stats.transition + k;
+      EXPECT_EQ(saliency[static_cast<std::size_t>(keypoints_[static_cast<std::size_t>(k)])],
+                sorted[static_cast<std::size_t>(rank)])
+          << k;
     }
+    expect_near_structure(count);
   }
-  expect_near_structure(count);
 }
 
 TEST_F(KeypointTest, Is3dFindsTheRoomsThreeOrientationsAndKeepsTheRest) {
