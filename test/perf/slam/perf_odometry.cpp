@@ -10,6 +10,8 @@
 // timed; converting to what each method takes is (rankslam: BGR to grey inside its loop; OpenCV:
 // grey image and float depth in metres, converted per frame here). OpenCV's methods see the
 // pinhole intrinsics without the lens distortion (they have no distortion model).
+// BM_RankslamTeam runs photometric, geometric and fused tracking on 1 and 2 threads (slam.threads)
+// side by side; cpu_ms_per_frame is the tracking thread's share then.
 //   perf_odometry [benchmark flags] [--seed=N]   (N: SlamConfig::seed of the rankslam rows, default 1)
 
 #include "rankslam/eval/metrics.hpp"
@@ -149,7 +151,8 @@ void report(benchmark::State& state, const std::string& name, const Outcome& out
 }
 
 void rankslam_odometry(benchmark::State& state, slam::Mode mode,
-                       slam::OrbImplementation orb = slam::OrbImplementation::kFixedMemory) {
+                       slam::OrbImplementation orb = slam::OrbImplementation::kFixedMemory,
+                       int threads = slam::SlamConfig{}.threads, bool name_threads = false) {
   const Sequence& s = sequence();
   if (!s.error.empty()) {
     state.SkipWithError(s.error.c_str());
@@ -161,6 +164,7 @@ void rankslam_odometry(benchmark::State& state, slam::Mode mode,
     config.mode = mode;
     config.seed = rankslam_seed();
     config.orb_implementation = orb;
+    config.threads = threads;
     slam::SlamLoop loop(config, s.calibration);
     hal::RgbdFrame frame;
     outcome = run_sequence(s, [&](std::size_t i, Eigen::Isometry3d& T_world_cam, bool& failed) {
@@ -174,7 +178,8 @@ void rankslam_odometry(benchmark::State& state, slam::Mode mode,
   }
   report(state,
          std::string("rankslam ") + std::string(slam::to_string(mode)) +
-             (orb == slam::OrbImplementation::kOpenCv ? " cv::ORB" : ""),
+             (orb == slam::OrbImplementation::kOpenCv ? " cv::ORB" : "") +
+             (name_threads ? ", " + std::to_string(threads) + (threads == 1 ? " thread" : " threads") : ""),
          outcome);
 }
 
@@ -230,6 +235,11 @@ void BM_OpenCvRgbdIcpOdometry(benchmark::State& state) {
   opencv_odometry<cv::rgbd::RgbdICPOdometry>(state, "OpenCV RgbdICPOdometry");
 }
 void BM_RankslamPhotometric(benchmark::State& state) { rankslam_odometry(state, slam::Mode::kPhotometric); }
+// The thread team side by side: one thread against the default team, in every mode.
+void BM_RankslamTeam(benchmark::State& state) {
+  rankslam_odometry(state, static_cast<slam::Mode>(state.range(0)), slam::OrbImplementation::kFixedMemory,
+                    static_cast<int>(state.range(1)), true);
+}
 void BM_RankslamBaseline(benchmark::State& state) { rankslam_odometry(state, slam::Mode::kBaseline); }
 void BM_RankslamPhotometricOpenCvOrb(benchmark::State& state) {
   rankslam_odometry(state, slam::Mode::kPhotometric, slam::OrbImplementation::kOpenCv);
@@ -240,6 +250,13 @@ BENCHMARK(BM_OpenCvRgbdIcpOdometry)->Iterations(1)->Unit(benchmark::kMillisecond
 BENCHMARK(BM_RankslamPhotometric)->Iterations(1)->Unit(benchmark::kMillisecond);
 BENCHMARK(BM_RankslamBaseline)->Iterations(1)->Unit(benchmark::kMillisecond);
 BENCHMARK(BM_RankslamPhotometricOpenCvOrb)->Iterations(1)->Unit(benchmark::kMillisecond);
+BENCHMARK(BM_RankslamTeam)
+    ->ArgsProduct({{static_cast<int>(slam::Mode::kPhotometric), static_cast<int>(slam::Mode::kGeometric),
+                    static_cast<int>(slam::Mode::kFused)},
+                   {1, 2}})
+    ->ArgNames({"mode", "threads"})
+    ->Iterations(1)
+    ->Unit(benchmark::kMillisecond);
 
 void print_table() {
   const auto& all = outcomes();
