@@ -502,11 +502,7 @@ float CloudPreprocessor::resolution(const cv::Mat& depth) {
     }
   };
   constexpr int kRowsPerChunk = 8;
-  if (team_ != nullptr) {
-    team_->for_chunks(rows, kRowsPerChunk, rows_of_distances);
-  } else {
-    rows_of_distances(0, rows, 0);
-  }
+  parallel::for_chunks(team_, rows, kRowsPerChunk, rows_of_distances);
   return mean_of_finite(neighbour_distances_.data(), static_cast<std::size_t>(rows) * static_cast<std::size_t>(columns));
 }
 
@@ -600,11 +596,7 @@ bool CloudPreprocessor::voxelise(const cv::Mat& depth, float leaf_m, int& voxels
     const auto i = static_cast<std::size_t>(b);
     fitted[i] = voxelise_rows(depth, leaf_m, first_row[i], first_row[i + 1], bands_[i]);
   };
-  if (team_ != nullptr) {
-    team_->for_each(kVoxelBands, voxelise_band);
-  } else {
-    for (int b = 0; b < kVoxelBands; ++b) voxelise_band(b, 0);
-  }
+  parallel::for_each(team_, kVoxelBands, voxelise_band);
   VoxelBand& merged = bands_[0];
   if (!fitted[0]) return false;
   for (std::size_t b = 1; b < bands_.size(); ++b) {
@@ -861,11 +853,7 @@ GeometryStatus CloudPreprocessor::process(const cv::Mat& depth, SampledCloud& cl
                            voxel_normals_[k], &voxel_curvature_[k]);
     }
   };
-  if (team_ != nullptr) {
-    team_->for_chunks(voxels, kVoxelsPerChunk, estimate_normals);
-  } else {
-    estimate_normals(0, voxels, 0);
-  }
+  parallel::for_chunks(team_, voxels, kVoxelsPerChunk, estimate_normals);
   int kept = 0;
   for (int i = 0; i < voxels; ++i) {
     const auto v = static_cast<std::size_t>(i);

@@ -79,7 +79,7 @@ std::string GeometricFrontend::configure(const slam::DepthCameraModel& camera,
   keypoints_.assign(static_cast<std::size_t>(capacities.max_keypoints), 0);
   keypoint_count_ = 0;
   support_grid_.reserve(capacities.max_sampled_points);
-  shots_.resize(static_cast<std::size_t>(team != nullptr ? team->size() : 1));
+  shots_.resize(static_cast<std::size_t>(parallel::team_size(team)));
   for (ShotEstimator& shot : shots_) shot.reserve(capacities.max_sampled_points);
   described_.assign(static_cast<std::size_t>(capacities.max_keypoints), 0);
   if (std::string error = matcher_.configure(capacities.max_keypoints, kShotSize,
@@ -199,11 +199,7 @@ GeometryStatus GeometricFrontend::extract(const cv::Mat& depth, KeypointMethod m
               : 0;
     }
   };
-  if (team_ != nullptr) {
-    team_->for_chunks(keypoint_count_, kKeypointsPerChunk, describe);
-  } else {
-    describe(0, keypoint_count_, 0);
-  }
+  parallel::for_chunks(team_, keypoint_count_, kKeypointsPerChunk, describe);
   int count = 0;
   for (int k = 0; k < keypoint_count_; ++k) {
     if (described_[static_cast<std::size_t>(k)] == 0) continue;

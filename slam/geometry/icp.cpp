@@ -165,11 +165,7 @@ int PlaneIcp::associate(const IcpCloud& previous, const IcpCloud& current,
     }
   };
   constexpr int kSamplesPerChunk = 128;
-  if (team_ != nullptr) {
-    team_->for_chunks(samples, kSamplesPerChunk, associate_samples);
-  } else {
-    associate_samples(0, samples, 0);
-  }
+  parallel::for_chunks(team_, samples, kSamplesPerChunk, associate_samples);
   int count = 0;
   for (int s = 0; s < samples; ++s) {
     const auto from = static_cast<std::size_t>(s);

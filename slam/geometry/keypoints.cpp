@@ -40,7 +40,7 @@ std::string KeypointDetector::configure(const GeometryConfig& config, int max_po
   remaining_.assign(static_cast<std::size_t>(max_points), 0);
   next_remaining_.assign(static_cast<std::size_t>(max_points), 0);
   assigned_.assign(static_cast<std::size_t>(max_points), 0);
-  const int threads = team != nullptr ? team->size() : 1;
+  const int threads = parallel::team_size(team);
   candidates_.assign(static_cast<std::size_t>(max_points) * static_cast<std::size_t>(threads), 0);
   orientation_team_.reserve(team, config.is3d_hypotheses, robust::OrientationModel::kSampleSize, max_points);
   ranked_.assign(static_cast<std::size_t>(max_points), {0.0F, 0});
@@ -144,11 +144,7 @@ void KeypointDetector::compute_saliency(const SampledCloud& cloud, const std::ui
   };
   constexpr int kCellsPerChunk = 32;
   const auto cell_count = static_cast<int>(cells.size());
-  if (team_ != nullptr) {
-    team_->for_chunks(cell_count, kCellsPerChunk, saliency_of_cells);
-  } else {
-    saliency_of_cells(0, cell_count, 0);
-  }
+  parallel::for_chunks(team_, cell_count, kCellsPerChunk, saliency_of_cells);
   saliency_count_ = n;
 }
 

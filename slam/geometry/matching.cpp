@@ -211,7 +211,7 @@ std::string DescriptorMatcher::configure(int max_descriptors, int dimension, Ker
   dimension_ = dimension;
   team_ = team;
   const auto n = static_cast<std::size_t>(max_descriptors);
-  const auto blocks = static_cast<std::size_t>(team != nullptr ? team->size() : 1);
+  const auto blocks = static_cast<std::size_t>(parallel::team_size(team));
   best_of_a_.assign(n, 0.0F);
   arg_of_a_.assign(n, -1);
   best_of_b_.assign(n * blocks, 0.0F);
@@ -231,7 +231,7 @@ int DescriptorMatcher::match(const float* a, int count_a, const float* b, int co
   // merged in row order so that ties still go to the lower index. Block edges fall on multiples
   // of the kernels' 4 rows, so every dot product is summed as in one pass.
   constexpr int kRowAlignment = 4;
-  const int threads = team_ != nullptr ? team_->size() : 1;
+  const int threads = parallel::team_size(team_);
   const int rows_per_block =
       ((count_a + threads - 1) / threads + kRowAlignment - 1) / kRowAlignment * kRowAlignment;
   const int blocks = (count_a + rows_per_block - 1) / rows_per_block;
@@ -257,11 +257,7 @@ int DescriptorMatcher::match(const float* a, int count_a, const float* b, int co
     scan_portable(rows_of_a, rows, b, count_b, dimension_, best);
 #endif
   };
-  if (blocks > 1) {
-    team_->for_each(blocks, scan_block);
-  } else {
-    scan_block(0, 0);
-  }
+  parallel::for_each(team_, blocks, scan_block);
   for (int block = 1; block < blocks; ++block) {
     const auto b_offset = static_cast<std::ptrdiff_t>(block) * capacity_;
     for (int j = 0; j < count_b; ++j) {

@@ -82,4 +82,28 @@ class ThreadTeam {
   std::atomic<int> next_{0};
 };
 
+/// team->for_chunks(count, grain, body), or one call body(0, count, 0) without a team: for
+/// components whose team is optional.
+template <class Body>
+void for_chunks(ThreadTeam* team, int count, int grain, Body&& body) {
+  if (team != nullptr) {
+    team->for_chunks(count, grain, body);
+  } else if (count > 0) {
+    body(0, count, 0);
+  }
+}
+
+/// team->for_each(parts, body), or every part in order on the caller without a team.
+template <class Body>
+void for_each(ThreadTeam* team, int parts, Body&& body) {
+  if (team != nullptr) {
+    team->for_each(parts, body);
+  } else {
+    for (int part = 0; part < parts; ++part) body(part, 0);
+  }
+}
+
+/// Threads of an optional team (1 without one).
+[[nodiscard]] inline int team_size(const ThreadTeam* team) { return team != nullptr ? team->size() : 1; }
+
 }  // namespace rankslam::parallel
