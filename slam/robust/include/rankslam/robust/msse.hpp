@@ -78,34 +78,33 @@ struct MsseConfig {
 /// contiguous share per thread; the winner is the first hypothesis with the least k0-th residual,
 /// as in the serial loop, so the estimate is the same with or without the team.
 template <class Params>
-class MsseTeamScratch {
- public:
+struct MsseTeamScratch {
   /// Set-up (allocates): room for up to max_hypotheses hypotheses of `sample_size` points over
   /// up to max_points points. A null team (or a team of one) leaves the estimates serial.
-  void reserve(parallel::ThreadTeam* team, int max_hypotheses, int sample_size, int max_points) {
-    team_ = team;
-    max_hypotheses_ = std::max(0, max_hypotheses);
-    max_points_ = std::max(0, max_points);
-    const auto h = static_cast<std::size_t>(max_hypotheses_);
-    params_.assign(h, Params{});
-    samples_.assign(h * static_cast<std::size_t>(std::max(1, sample_size)), 0);
-    outcome_.assign(h, 0);
-    const int threads = team != nullptr ? team->size() : 1;
-    scores_.assign(static_cast<std::size_t>(threads) * static_cast<std::size_t>(max_points_), 0.0);
+  void reserve(parallel::ThreadTeam* team_to_use, int max_hypotheses_to_hold, int sample_size,
+               int max_points_to_hold) {
+    team = team_to_use;
+    max_hypotheses = std::max(0, max_hypotheses_to_hold);
+    max_points = std::max(0, max_points_to_hold);
+    const auto h = static_cast<std::size_t>(max_hypotheses);
+    params.assign(h, Params{});
+    samples.assign(h * static_cast<std::size_t>(std::max(1, sample_size)), 0);
+    outcome.assign(h, 0);
+    scores.assign(static_cast<std::size_t>(parallel::team_size(team)) * static_cast<std::size_t>(max_points), 0.0);
   }
 
   /// True when an estimate of `hypotheses` over n points can use the team.
   [[nodiscard]] bool usable(int hypotheses, int n) const {
-    return team_ != nullptr && team_->size() > 1 && hypotheses <= max_hypotheses_ && n <= max_points_;
+    return parallel::team_size(team) > 1 && hypotheses <= max_hypotheses && n <= max_points;
   }
 
-  parallel::ThreadTeam* team_ = nullptr;
-  int max_hypotheses_ = 0;
-  int max_points_ = 0;
-  std::vector<Params, Eigen::aligned_allocator<Params>> params_;
-  std::vector<int> samples_;
-  std::vector<std::uint8_t> outcome_;  // per drawn sample: 0 evaluated, 1 degenerate, 2 gated
-  std::vector<double> scores_;         // per thread: max_points_ scores
+  parallel::ThreadTeam* team = nullptr;
+  int max_hypotheses = 0;
+  int max_points = 0;
+  std::vector<Params, Eigen::aligned_allocator<Params>> params;
+  std::vector<int> samples;
+  std::vector<std::uint8_t> outcome;  // per drawn sample: 0 evaluated, 1 degenerate, 2 gated
+  std::vector<double> scores;         // per thread: max_points scores
 };
 
 /// MSSE (ALGORITHMS.md §1) on any RobustModel:
@@ -121,13 +120,13 @@ class MsseTeamScratch {
 /// point_sigma: optional per-point noise scale (e.g. correspondence_sigmas_m for Kinect depth);
 /// when given, residuals are ranked and segmented as r_i/σ_i. gate: optional predicate on a
 /// hypothesis (e.g. RigidMotionGate around a wheel-odometry prediction); rejected hypotheses do
-/// not count toward H. team: optional scratch that shares step 1 among a thread team (same
-/// result). Allocates nothing once `workspace` (and `team`) hold model.size() points.
+/// not count toward H. shared: optional scratch that shares step 1 among a thread team (same
+/// result). Allocates nothing once `workspace` (and `shared`) hold model.size() points.
 template <RobustModel Model, class Gate = AcceptAllHypotheses>
 RobustResult<typename Model::Params> estimate_msse(
     const Model& model, const MsseConfig& config, RobustWorkspace& workspace,
     std::span<const double> point_sigma = {}, const Gate& gate = Gate{},
-    MsseTeamScratch<typename Model::Params>* team = nullptr) {
+    MsseTeamScratch<typename Model::Params>* shared = nullptr) {
   using Params = typename Model::Params;
   constexpr int kP = Model::kParameterCount;
   constexpr int kSample = Model::kSampleSize;
@@ -180,35 +179,37 @@ RobustResult<typename Model::Params> estimate_msse(
     if (inverse_variances != nullptr) detail::scale_values(out, inverse_variances + begin, count);
   };
 
-  // Step 1: least k-th order.
-  double* scores = workspace.scores();
-  bool have_best = false;
-  double best_kth = std::numeric_limits<double>::infinity();
-  Params best = Model::default_params();
-  const auto visit = [&](const Params& hypothesis) {
-    if (have_best) {
+  // Step 1: least k-th order. least_kth scores a hypothesis into `scratch` and is true, with its
+  // k0-th value in `kth`, unless it is certain to fall short of `bound` (when bounded): it cannot
+  // have k0 values below the best so far, so its evaluation stops early.
+  const auto least_kth = [&](const Params& hypothesis, double* scratch, bool bounded, double bound,
+                             double& kth) {
+    if (bounded) {
       int below = 0;
       for (int begin = 0; begin < n; begin += kBlock) {
         const int count = std::min(kBlock, n - begin);
-        evaluate(hypothesis, begin, count, scores + begin);
-        below += detail::count_below(scores + begin, count, best_kth);
-        if (below + (n - begin - count) < k0) return;  // cannot reach k0 values below the best
+        evaluate(hypothesis, begin, count, scratch + begin);
+        below += detail::count_below(scratch + begin, count, bound);
+        if (below + (n - begin - count) < k0) return false;
       }
     } else {
-      evaluate(hypothesis, 0, n, scores);
+      evaluate(hypothesis, 0, n, scratch);
     }
-    std::nth_element(scores, scores + (k0 - 1), scores + n);
-    best_kth = scores[k0 - 1];
-    best = hypothesis;
-    have_best = true;
+    std::nth_element(scratch, scratch + (k0 - 1), scratch + n);
+    kth = scratch[k0 - 1];
+    return true;
   };
+  bool have_best = false;
+  double best_kth = std::numeric_limits<double>::infinity();
+  Params best = Model::default_params();
   detail::HypothesisCounts counts;
+  bool use_team = false;
   if constexpr (kSample > 0) {
-    if (team != nullptr && team->usable(config.hypotheses, n)) {
+    use_team = shared != nullptr && shared->usable(config.hypotheses, n);
+    if (use_team) {
       // The serial loop's draws, in batches: each batch is fitted and gated concurrently, and
       // holds no more samples than hypotheses still wanted, so no draw is made that the serial
       // loop would not make.
-      MsseTeamScratch<Params>& shared = *team;
       Pcg32 rng(config.seed);
       const std::int64_t max_draws = static_cast<std::int64_t>(config.hypotheses) *
                                      std::max(1, config.draws_per_hypothesis);
@@ -217,14 +218,14 @@ RobustResult<typename Model::Params> estimate_msse(
         const int batch = static_cast<int>(
             std::min<std::int64_t>(config.hypotheses - counts.evaluated, max_draws - draws));
         for (int i = 0; i < batch; ++i) {
-          detail::draw_sample(rng, n, kSample, shared.samples_.data() + static_cast<std::ptrdiff_t>(i) * kSample);
+          detail::draw_sample(rng, n, kSample, shared->samples.data() + static_cast<std::ptrdiff_t>(i) * kSample);
         }
         draws += batch;
-        Params* slots = shared.params_.data() + counts.evaluated;
-        shared.team_->for_chunks(batch, 16, [&](int begin, int end, int /*thread*/) {
+        Params* slots = shared->params.data() + counts.evaluated;
+        shared->team->for_chunks(batch, 16, [&](int begin, int end, int /*thread*/) {
           for (int i = begin; i < end; ++i) {
             const std::span<const int> indices(
-                shared.samples_.data() + static_cast<std::ptrdiff_t>(i) * kSample, kSample);
+                shared->samples.data() + static_cast<std::ptrdiff_t>(i) * kSample, kSample);
             Params params = Model::default_params();
             std::uint8_t outcome = 0;
             if (model.sample_degenerate(indices) || !model.fit_sample(indices, params)) {
@@ -232,13 +233,13 @@ RobustResult<typename Model::Params> estimate_msse(
             } else if (!gate(params)) {
               outcome = 2;
             }
-            shared.outcome_[static_cast<std::size_t>(i)] = outcome;
+            shared->outcome[static_cast<std::size_t>(i)] = outcome;
             slots[i] = params;
           }
         });
         int kept = 0;
         for (int i = 0; i < batch; ++i) {
-          switch (shared.outcome_[static_cast<std::size_t>(i)]) {
+          switch (shared->outcome[static_cast<std::size_t>(i)]) {
             case 0: slots[kept++] = slots[i]; break;
             case 1: ++counts.degenerate; break;
             default: ++counts.gated; break;
@@ -249,35 +250,23 @@ RobustResult<typename Model::Params> estimate_msse(
       // Each thread scores a contiguous share and keeps its first least k0-th residual; the
       // shares are then compared in order, so ties go to the earlier hypothesis as serially.
       const int hypotheses = counts.evaluated;
-      const int shares = shared.team_->size();
+      const int shares = shared->team->size();
       std::array<double, parallel::ThreadTeam::kMaxThreads> share_kth{};
       std::array<int, parallel::ThreadTeam::kMaxThreads> share_best{};
-      shared.team_->for_each(shares, [&](int share, int thread) {
-        double* share_scores = shared.scores_.data() + static_cast<std::ptrdiff_t>(thread) * shared.max_points_;
+      shared->team->for_each(shares, [&](int share, int thread) {
+        double* scratch = shared->scores.data() + static_cast<std::ptrdiff_t>(thread) * shared->max_points;
         const int first = static_cast<int>(static_cast<std::int64_t>(hypotheses) * share / shares);
         const int last = static_cast<int>(static_cast<std::int64_t>(hypotheses) * (share + 1) / shares);
-        double kth = std::numeric_limits<double>::infinity();
+        double share_best_kth = std::numeric_limits<double>::infinity();
         int best_index = -1;
         for (int h = first; h < last; ++h) {
-          const Params& hypothesis = shared.params_[static_cast<std::size_t>(h)];
-          bool beaten = false;
-          if (best_index >= 0) {
-            int below = 0;
-            for (int begin = 0; begin < n && !beaten; begin += kBlock) {
-              const int count = std::min(kBlock, n - begin);
-              evaluate(hypothesis, begin, count, share_scores + begin);
-              below += detail::count_below(share_scores + begin, count, kth);
-              beaten = below + (n - begin - count) < k0;
-            }
-          } else {
-            evaluate(hypothesis, 0, n, share_scores);
+          double kth = 0.0;
+          if (least_kth(shared->params[static_cast<std::size_t>(h)], scratch, best_index >= 0, share_best_kth, kth)) {
+            share_best_kth = kth;
+            best_index = h;
           }
-          if (beaten) continue;
-          std::nth_element(share_scores, share_scores + (k0 - 1), share_scores + n);
-          kth = share_scores[k0 - 1];
-          best_index = h;
         }
-        share_kth[static_cast<std::size_t>(share)] = kth;
+        share_kth[static_cast<std::size_t>(share)] = share_best_kth;
         share_best[static_cast<std::size_t>(share)] = best_index;
       });
       for (int share = 0; share < shares; ++share) {
@@ -285,17 +274,23 @@ RobustResult<typename Model::Params> estimate_msse(
         if (index < 0) continue;
         if (!have_best || share_kth[static_cast<std::size_t>(share)] < best_kth) {
           best_kth = share_kth[static_cast<std::size_t>(share)];
-          best = shared.params_[static_cast<std::size_t>(index)];
+          best = shared->params[static_cast<std::size_t>(index)];
           have_best = true;
         }
       }
-    } else {
-      detail::for_each_hypothesis(model, config.hypotheses, config.draws_per_hypothesis,
-                                  config.seed, gate, counts, visit);
     }
-  } else {
+  }
+  if (!use_team) {
+    double* scores = workspace.scores();
     detail::for_each_hypothesis(model, config.hypotheses, config.draws_per_hypothesis, config.seed,
-                                gate, counts, visit);
+                                gate, counts, [&](const Params& hypothesis) {
+                                  double kth = 0.0;
+                                  if (least_kth(hypothesis, scores, have_best, best_kth, kth)) {
+                                    best_kth = kth;
+                                    best = hypothesis;
+                                    have_best = true;
+                                  }
+                                });
   }
   result.hypotheses_evaluated = counts.evaluated;
   result.degenerate_samples = counts.degenerate;
