@@ -60,6 +60,9 @@ class StopSignals {
 struct Mailbox {
   std::mutex mutex;
   std::optional<nav::PoseSample> sample;
+  /// Map corrections of the samples since the output last took one: a sample that is
+  /// overwritten before the output sees it must not take its correction with it.
+  Eigen::Isometry3d pending_correction = Eigen::Isometry3d::Identity();
   std::uint64_t sample_count = 0;
   bool camera_fault = false;
   bool end_of_stream = false;
@@ -98,7 +101,10 @@ void output_thread(const RobotConfig& config, unsigned wheel_can_id, Mailbox& ma
       std::lock_guard lock(mailbox.mutex);
       if (mailbox.sample_count != seen && mailbox.sample) {
         seen = mailbox.sample_count;
-        broadcaster.update(*mailbox.sample);
+        nav::PoseSample sample = *mailbox.sample;
+        sample.map_correction = mailbox.pending_correction;
+        mailbox.pending_correction.setIdentity();
+        broadcaster.update(sample);
       }
       broadcaster.set_camera_state(mailbox.camera_fault, mailbox.end_of_stream);
     }
@@ -356,6 +362,10 @@ int run_live(const RunArgs& args) {
       sample.inlier_percent = static_cast<std::uint8_t>(std::min(100, 100 * result.inliers / result.features));
     }
     std::lock_guard lock(mailbox.mutex);
+    if (result.graph_applied) {
+      // The correction in base frames: T_map_base = T_base_cam * T_world_cam * T_cam_base.
+      mailbox.pending_correction = T_base_cam * result.map_correction * T_cam_base * mailbox.pending_correction;
+    }
     mailbox.sample = sample;
     ++mailbox.sample_count;
     mailbox.camera_fault = false;

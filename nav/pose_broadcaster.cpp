@@ -45,6 +45,10 @@ PoseBroadcaster::PoseBroadcaster(const PoseOutputConfig& config, hal::CanBus& bu
       last_heartbeat_ns_(start_ns_) {}
 
 void PoseBroadcaster::update(const PoseSample& sample) {
+  T_map_odom_ = sample.map_correction * T_map_odom_;
+  // Re-orthonormalised: corrections compose for as long as the robot runs.
+  const Eigen::Quaterniond rotation(T_map_odom_.rotation());
+  T_map_odom_.linear() = rotation.normalized().toRotationMatrix();
   latest_ = sample;
   last_frame_ns_ = clock_.now_ns();
   consecutive_failures_ = sample.registered || sample.wheels_only ? 0 : consecutive_failures_ + 1;
@@ -79,9 +83,14 @@ void PoseBroadcaster::send(const hal::CanFrame& frame) {
   }
 }
 
+Eigen::Isometry3d PoseBroadcaster::T_odom_base() const {
+  return latest_ ? Eigen::Isometry3d(T_map_odom_.inverse() * latest_->T_map_base) : Eigen::Isometry3d::Identity();
+}
+
 void PoseBroadcaster::send_pose_cycle(std::int64_t now_ns) {
   const PoseStatus current = status();
-  const PlanarPose pose = latest_ ? to_planar_pose(latest_->T_map_base) : PlanarPose{};
+  const PlanarPose pose = to_planar_pose(T_odom_base());
+  const PlanarPose map_odom = to_planar_pose(T_map_odom_);
   PoseXYYaw xy_yaw;
   xy_yaw.x_m = pose.x_m;
   xy_yaw.y_m = pose.y_m;
@@ -92,9 +101,11 @@ void PoseBroadcaster::send_pose_cycle(std::int64_t now_ns) {
   z_roll_pitch.roll_deg = pose.roll_deg;
   z_roll_pitch.pitch_deg = pose.pitch_deg;
   z_roll_pitch.counter = pose_counter_;
+  const PoseXYYaw map_odom_xy_yaw{map_odom.x_m, map_odom.y_m, map_odom.yaw_deg, pose_counter_};
+  const PoseZRollPitch map_odom_z_roll_pitch{map_odom.z_m, map_odom.roll_deg, map_odom.pitch_deg, pose_counter_};
   PoseQuality quality;
   quality.status = current;
-  quality.position_saturated = position_saturates(pose);
+  quality.position_saturated = position_saturates(pose) || position_saturates(map_odom);
   quality.counter = pose_counter_;
   if (latest_) {
     quality.frame_counter = static_cast<std::uint8_t>(latest_->frame_sequence & 0xFFU);
@@ -105,6 +116,8 @@ void PoseBroadcaster::send_pose_cycle(std::int64_t now_ns) {
   // The SLAM loop does not estimate its covariance yet: sigmas stay "unknown" rather than guessed.
   send(encode_pose_xy_yaw(xy_yaw, now_ns));
   send(encode_pose_z_roll_pitch(z_roll_pitch, now_ns));
+  send(encode_pose_xy_yaw(map_odom_xy_yaw, now_ns, kMapOdomXYYawId));
+  send(encode_pose_z_roll_pitch(map_odom_z_roll_pitch, now_ns, kMapOdomZRollPitchId));
   send(encode_pose_quality(quality, now_ns));
   pose_counter_ = static_cast<std::uint8_t>((pose_counter_ + 1U) % kPoseCounterModulus);
   ++counters_.pose_cycles;

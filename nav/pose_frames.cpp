@@ -112,22 +112,22 @@ bool position_saturates(const PlanarPose& pose) {
   return !(std::abs(pose.x_m) <= limit_m && std::abs(pose.y_m) <= limit_m && std::abs(pose.z_m) <= limit_m);
 }
 
-hal::CanFrame encode_pose_xy_yaw(const PoseXYYaw& pose, std::int64_t stamp_ns) {
+hal::CanFrame encode_pose_xy_yaw(const PoseXYYaw& pose, std::int64_t stamp_ns, std::uint32_t id) {
   std::uint64_t word = 0;
   put_signed(word, 0, 22, position_count(pose.x_m));
   put_signed(word, 22, 22, position_count(pose.y_m));
   put_signed(word, 44, 16, wrapped_angle_count(pose.yaw_deg));
   put_unsigned(word, 60, 4, pose.counter);
-  return store_word(word, kPoseXYYawId, stamp_ns);
+  return store_word(word, id, stamp_ns);
 }
 
-hal::CanFrame encode_pose_z_roll_pitch(const PoseZRollPitch& pose, std::int64_t stamp_ns) {
+hal::CanFrame encode_pose_z_roll_pitch(const PoseZRollPitch& pose, std::int64_t stamp_ns, std::uint32_t id) {
   std::uint64_t word = 0;
   put_signed(word, 0, 22, position_count(pose.z_m));
   put_signed(word, 22, 16, wrapped_angle_count(pose.roll_deg));
   put_signed(word, 38, 16, pitch_count(pose.pitch_deg));
   put_unsigned(word, 60, 4, pose.counter);
-  return store_word(word, kPoseZRollPitchId, stamp_ns);
+  return store_word(word, id, stamp_ns);
 }
 
 hal::CanFrame encode_pose_quality(const PoseQuality& quality, std::int64_t stamp_ns) {
@@ -156,8 +156,8 @@ hal::CanFrame encode_heartbeat(const Heartbeat& heartbeat, std::int64_t stamp_ns
   return store_word(word, kHeartbeatId, stamp_ns);
 }
 
-std::optional<PoseXYYaw> decode_pose_xy_yaw(const hal::CanFrame& frame) {
-  if (!valid(frame, kPoseXYYawId)) return std::nullopt;
+std::optional<PoseXYYaw> decode_pose_xy_yaw(const hal::CanFrame& frame, std::uint32_t id) {
+  if (!valid(frame, id)) return std::nullopt;
   const std::uint64_t word = load_word(frame);
   PoseXYYaw pose;
   pose.x_m = static_cast<double>(get_signed(word, 0, 22)) * kPositionScale_m;
@@ -167,8 +167,8 @@ std::optional<PoseXYYaw> decode_pose_xy_yaw(const hal::CanFrame& frame) {
   return pose;
 }
 
-std::optional<PoseZRollPitch> decode_pose_z_roll_pitch(const hal::CanFrame& frame) {
-  if (!valid(frame, kPoseZRollPitchId)) return std::nullopt;
+std::optional<PoseZRollPitch> decode_pose_z_roll_pitch(const hal::CanFrame& frame, std::uint32_t id) {
+  if (!valid(frame, id)) return std::nullopt;
   const std::uint64_t word = load_word(frame);
   PoseZRollPitch pose;
   pose.z_m = static_cast<double>(get_signed(word, 0, 22)) * kPositionScale_m;

@@ -902,6 +902,7 @@ void SlamLoop::apply_optimized_graph(FrameResult& result) {
   correct_tracking(correction);
   result.T_world_cam = rigid(correction * result.T_world_cam);
   result.graph_applied = true;
+  result.map_correction = rigid(correction * result.map_correction);
 }
 
 void SlamLoop::correct_tracking(const Eigen::Isometry3d& correction) {

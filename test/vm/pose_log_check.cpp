@@ -1,6 +1,6 @@
 // Checks the CAN log of a `rankslam run` against the trajectory `rankslam replay` wrote for the
-// same recording: every pose cycle decodes to the replayed pose of the frame it names within
-// 1 mm and 0.1°, cycles and heartbeats arrive at their configured rates, the watchdog reports
+// same recording: every pose cycle (odom pose composed with the map-odom frames) decodes to the
+// replayed pose of the frame it names within 1 mm and 0.1°, cycles and heartbeats arrive at their configured rates, the watchdog reports
 // LOST once the camera stops while heartbeats go on, and the run flushed its outputs.
 //
 //   pose_log_check --log CANDUMP_L --reference TRAJ --recording DIR --run-out DIR
@@ -31,6 +31,8 @@ struct Cycle {
   std::int64_t stamp_ns = 0;
   nav::PoseXYYaw xy_yaw;
   nav::PoseZRollPitch z_roll_pitch;
+  nav::PoseXYYaw map_odom_xy_yaw;
+  nav::PoseZRollPitch map_odom_z_roll_pitch;
   nav::PoseQuality quality;
 };
 
@@ -102,9 +104,19 @@ int main(int argc, char** argv) {
       if (stage != 1 || !decoded || decoded->counter != partial->xy_yaw.counter) { ++broken_cycles; stage = 0; continue; }
       partial->z_roll_pitch = *decoded;
       stage = 2;
+    } else if (frame->id == nav::kMapOdomXYYawId) {
+      const auto decoded = nav::decode_pose_xy_yaw(*frame, nav::kMapOdomXYYawId);
+      if (stage != 2 || !decoded || decoded->counter != partial->xy_yaw.counter) { ++broken_cycles; stage = 0; continue; }
+      partial->map_odom_xy_yaw = *decoded;
+      stage = 3;
+    } else if (frame->id == nav::kMapOdomZRollPitchId) {
+      const auto decoded = nav::decode_pose_z_roll_pitch(*frame, nav::kMapOdomZRollPitchId);
+      if (stage != 3 || !decoded || decoded->counter != partial->xy_yaw.counter) { ++broken_cycles; stage = 0; continue; }
+      partial->map_odom_z_roll_pitch = *decoded;
+      stage = 4;
     } else if (frame->id == nav::kPoseQualityId) {
       const auto decoded = nav::decode_pose_quality(*frame);
-      if (stage != 2 || !decoded || decoded->counter != partial->xy_yaw.counter) { ++broken_cycles; stage = 0; continue; }
+      if (stage != 4 || !decoded || decoded->counter != partial->xy_yaw.counter) { ++broken_cycles; stage = 0; continue; }
       partial->quality = *decoded;
       cycles.push_back(*partial);
       stage = 0;
@@ -167,9 +179,13 @@ int main(int argc, char** argv) {
       continue;
     }
     frames_seen.insert(cycle.quality.frame_counter);
-    const nav::PlanarPose decoded{cycle.xy_yaw.x_m, cycle.xy_yaw.y_m, cycle.z_roll_pitch.z_m,
-                                  cycle.z_roll_pitch.roll_deg, cycle.z_roll_pitch.pitch_deg, cycle.xy_yaw.yaw_deg};
-    const Eigen::Isometry3d T_map_base = nav::to_isometry(decoded);
+    const nav::PlanarPose odom{cycle.xy_yaw.x_m, cycle.xy_yaw.y_m, cycle.z_roll_pitch.z_m,
+                               cycle.z_roll_pitch.roll_deg, cycle.z_roll_pitch.pitch_deg, cycle.xy_yaw.yaw_deg};
+    const nav::PlanarPose map_odom{cycle.map_odom_xy_yaw.x_m, cycle.map_odom_xy_yaw.y_m, cycle.map_odom_z_roll_pitch.z_m,
+                                   cycle.map_odom_z_roll_pitch.roll_deg, cycle.map_odom_z_roll_pitch.pitch_deg,
+                                   cycle.map_odom_xy_yaw.yaw_deg};
+    const Eigen::Isometry3d T_map_base = nav::to_isometry(map_odom) * nav::to_isometry(odom);
+    const nav::PlanarPose decoded = nav::to_planar_pose(T_map_base);
     const Eigen::Isometry3d expected = T_base_cam * ref[index].T_world_cam * T_base_cam.inverse();
     const nav::PlanarPose expected_pose = nav::to_planar_pose(expected);
     max_position_m = std::max(max_position_m, (T_map_base.translation() - expected.translation()).norm());

@@ -249,12 +249,14 @@ TEST(PoseBroadcaster, SendsPoseCyclesAndHeartbeatsAtTheirRates) {
   run_for(broadcaster, clock, 1000);
   EXPECT_EQ(broadcaster.counters().pose_cycles, 50U);
   EXPECT_EQ(broadcaster.counters().heartbeats, 10U);
-  ASSERT_EQ(bus.sent.size(), 160U);
+  ASSERT_EQ(bus.sent.size(), 260U);
   // Cycle order and shared counter.
   EXPECT_EQ(bus.sent[0].id, kPoseXYYawId);
   EXPECT_EQ(bus.sent[1].id, kPoseZRollPitchId);
-  EXPECT_EQ(bus.sent[2].id, kPoseQualityId);
-  EXPECT_EQ(bus.sent[3].id, kHeartbeatId);
+  EXPECT_EQ(bus.sent[2].id, kMapOdomXYYawId);
+  EXPECT_EQ(bus.sent[3].id, kMapOdomZRollPitchId);
+  EXPECT_EQ(bus.sent[4].id, kPoseQualityId);
+  EXPECT_EQ(bus.sent[5].id, kHeartbeatId);
   const auto first = decode_pose_xy_yaw(bus.sent[0]);
   ASSERT_TRUE(first);
   EXPECT_NEAR(first->x_m, 1.234, 1e-9);
@@ -272,6 +274,83 @@ TEST(PoseBroadcaster, SendsPoseCyclesAndHeartbeatsAtTheirRates) {
     EXPECT_EQ(h[i].counter, i);
     EXPECT_EQ(h[i].uptime_ms, 100 * i);
   }
+}
+
+// The base in the map frame from the latest complete cycle: map-odom composed with the odom pose.
+struct DecodedCycle {
+  Eigen::Isometry3d T_odom_base = Eigen::Isometry3d::Identity();
+  Eigen::Isometry3d T_map_odom = Eigen::Isometry3d::Identity();
+};
+
+DecodedCycle last_cycle(const std::vector<hal::CanFrame>& frames) {
+  DecodedCycle cycle;
+  std::optional<PoseXYYaw> xy, map_xy;
+  std::optional<PoseZRollPitch> zrp, map_zrp;
+  for (const auto& frame : frames) {
+    if (auto d = decode_pose_xy_yaw(frame)) xy = d;
+    if (auto d = decode_pose_z_roll_pitch(frame)) zrp = d;
+    if (auto d = decode_pose_xy_yaw(frame, kMapOdomXYYawId)) map_xy = d;
+    if (auto d = decode_pose_z_roll_pitch(frame, kMapOdomZRollPitchId)) map_zrp = d;
+  }
+  EXPECT_TRUE(xy && zrp && map_xy && map_zrp);
+  if (!(xy && zrp && map_xy && map_zrp)) return cycle;
+  EXPECT_EQ(xy->counter, map_zrp->counter);
+  cycle.T_odom_base = to_isometry(PlanarPose{xy->x_m, xy->y_m, zrp->z_m, zrp->roll_deg, zrp->pitch_deg, xy->yaw_deg});
+  cycle.T_map_odom = to_isometry(PlanarPose{map_xy->x_m, map_xy->y_m, map_zrp->z_m, map_zrp->roll_deg,
+                                            map_zrp->pitch_deg, map_xy->yaw_deg});
+  return cycle;
+}
+
+TEST(PoseBroadcaster, LoopClosureCorrectionsMoveTheMapOdomFrameNotTheOdomPose) {
+  RecordingBus bus;
+  ManualClock clock;
+  PoseOutputConfig config;
+  config.watchdog_timeout_s = 10.0;
+  PoseBroadcaster broadcaster(config, bus, clock);
+  // The robot drives 1 cm per frame along x while turning 0.2° per frame.
+  const auto tracked = [](int frame) {
+    Eigen::Isometry3d T = Eigen::Isometry3d::Identity();
+    for (int i = 0; i < frame; ++i) {
+      Eigen::Isometry3d step = Eigen::Isometry3d::Identity();
+      step.translation() = Eigen::Vector3d(0.01, 0.0, 0.0);
+      step.linear() = Eigen::AngleAxisd(0.2 * M_PI / 180.0, Eigen::Vector3d::UnitZ()).toRotationMatrix();
+      T = T * step;
+    }
+    return T;
+  };
+  // At frame 30 a loop closure moves the map by 0.25 m and 3° (and a little z and roll).
+  Eigen::Isometry3d correction = Eigen::Isometry3d::Identity();
+  correction.translation() = Eigen::Vector3d(-0.25, 0.1, 0.004);
+  correction.linear() = (Eigen::AngleAxisd(3.0 * M_PI / 180.0, Eigen::Vector3d::UnitZ()) *
+                         Eigen::AngleAxisd(0.3 * M_PI / 180.0, Eigen::Vector3d::UnitX())).toRotationMatrix();
+  Eigen::Isometry3d previous_odom = Eigen::Isometry3d::Identity();
+  double largest_odom_step_m = 0.0;
+  for (int frame = 0; frame < 60; ++frame) {
+    PoseSample sample;
+    sample.capture_ns = clock.now;
+    sample.frame_sequence = static_cast<std::uint32_t>(frame);
+    sample.T_map_base = frame >= 30 ? Eigen::Isometry3d(correction * tracked(frame)) : tracked(frame);
+    if (frame == 30) sample.map_correction = correction;
+    broadcaster.update(sample);
+    run_for(broadcaster, clock, 20);  // one cycle per frame
+    const DecodedCycle cycle = last_cycle(bus.sent);
+    // The map pose is always the SLAM pose; the odom pose moves by the tracked step only.
+    const Eigen::Isometry3d T_map_base = cycle.T_map_odom * cycle.T_odom_base;
+    EXPECT_LT((T_map_base.translation() - sample.T_map_base.translation()).norm(), 0.002) << "frame " << frame;
+    EXPECT_LT(Eigen::AngleAxisd(T_map_base.rotation().transpose() * sample.T_map_base.rotation()).angle(), 0.001);
+    EXPECT_LT((cycle.T_odom_base.translation() - tracked(frame).translation()).norm(), 0.001) << "frame " << frame;
+    if (frame > 0) {
+      largest_odom_step_m = std::max(largest_odom_step_m, (cycle.T_odom_base.translation() - previous_odom.translation()).norm());
+    }
+    previous_odom = cycle.T_odom_base;
+    if (frame < 30) {
+      EXPECT_TRUE(cycle.T_map_odom.isApprox(Eigen::Isometry3d::Identity(), 1e-12)) << "frame " << frame;
+    } else {
+      EXPECT_LT((cycle.T_map_odom.translation() - correction.translation()).norm(), 0.001);
+    }
+  }
+  EXPECT_LT(largest_odom_step_m, 0.0115);  // 1 cm steps and quantisation; the 0.27 m correction is not among them
+  EXPECT_TRUE(broadcaster.T_map_odom().isApprox(correction, 1e-9));
 }
 
 TEST(PoseBroadcaster, WatchdogReportsLostWhileHeartbeatsContinue) {
@@ -371,7 +450,7 @@ TEST(PoseBroadcaster, FullQueueIsCountedAndFlaggedInTheHeartbeat) {
   bus.full = true;
   clock.now += 100'000'000;
   (void)broadcaster.poll();  // one cycle refused
-  EXPECT_EQ(broadcaster.counters().tx_dropped, 3U);
+  EXPECT_EQ(broadcaster.counters().tx_dropped, 5U);  // its five frames
   bus.full = false;
   clock.now += 900'000'000;
   (void)broadcaster.poll();
@@ -474,7 +553,24 @@ double dbc_value(const hal::CanFrame& frame, const DbcSignal& signal) {
 TEST(PoseFrames, DbcDescribesTheCodec) {
   const auto dbc = read_dbc(std::string(RANKSLAM_SOURCE_DIR) + "/deploy/can/rankslam.dbc");
   ASSERT_TRUE(dbc.contains(kPoseXYYawId) && dbc.contains(kPoseZRollPitchId) && dbc.contains(kPoseQualityId) &&
-              dbc.contains(kHeartbeatId) && dbc.contains(0x101));
+              dbc.contains(kHeartbeatId) && dbc.contains(0x101) && dbc.contains(kMapOdomXYYawId) &&
+              dbc.contains(kMapOdomZRollPitchId));
+  // The map-odom frames share the pose frames' layout.
+  for (const auto& [name, signal] : dbc.at(kPoseXYYawId)) {
+    ASSERT_TRUE(dbc.at(kMapOdomXYYawId).contains(name)) << name;
+    EXPECT_EQ(dbc.at(kMapOdomXYYawId).at(name).start, signal.start) << name;
+    EXPECT_EQ(dbc.at(kMapOdomXYYawId).at(name).length, signal.length) << name;
+  }
+  for (const auto& [name, signal] : dbc.at(kPoseZRollPitchId)) {
+    ASSERT_TRUE(dbc.at(kMapOdomZRollPitchId).contains(name)) << name;
+    EXPECT_EQ(dbc.at(kMapOdomZRollPitchId).at(name).start, signal.start) << name;
+    EXPECT_EQ(dbc.at(kMapOdomZRollPitchId).at(name).length, signal.length) << name;
+  }
+  const hal::CanFrame map_xy = encode_pose_xy_yaw(PoseXYYaw{3.5, -0.25, 12.34, 9}, 0, kMapOdomXYYawId);
+  EXPECT_EQ(map_xy.id, kMapOdomXYYawId);
+  EXPECT_NEAR(dbc_value(map_xy, dbc.at(kMapOdomXYYawId).at("X")), 3.5, 1e-9);
+  EXPECT_NEAR(dbc_value(map_xy, dbc.at(kMapOdomXYYawId).at("Yaw")), 12.34, 1e-9);
+  EXPECT_FALSE(decode_pose_xy_yaw(map_xy));  // a map-odom frame is not a pose frame
   const hal::CanFrame xy = encode_pose_xy_yaw(PoseXYYaw{-1234.567, 42.001, -123.45, 13}, 0);
   const auto& m110 = dbc.at(kPoseXYYawId);
   EXPECT_NEAR(dbc_value(xy, m110.at("X")), -1234.567, 1e-9);

@@ -29,10 +29,12 @@
 
 #include <unistd.h>
 
+#include <algorithm>
 #include <array>
 #include <chrono>
 #include <cstdio>
 #include <filesystem>
+#include <optional>
 #include <string>
 #include <thread>
 #include <vector>
@@ -113,6 +115,14 @@ struct CountedRun {
   int loop_closures = 0;
   int graphs_applied = 0;
   int retired_keyframes = 0;
+  /// At the frames where a graph was applied (and the frame stored no key-frame): the largest
+  /// map correction, and how far the previous frame re-expressed on its optimised key-frame is
+  /// from the correction applied to its pose (the correction is the whole jump: the pose
+  /// output's odom frame relies on it).
+  double largest_correction_m = 0.0;
+  double largest_correction_mismatch_m = 0.0;
+  int corrections_checked = 0;
+  int corrections_without_graph = 0;
 };
 
 // Replays the loop: `warm_up` frames, then `counted` frames, counting each frame's allocations.
@@ -141,6 +151,7 @@ CountedRun run(SlamLoop& loop, const std::vector<hal::RgbdFrame>& frames, int wa
     out.warm_up_allocations = count.this_thread_allocations();
   }
   const int retired_before = loop.retired_keyframes();
+  std::optional<FrameResult> previous;
   {
     const CountAllocations count;
     for (int i = warm_up; i < warm_up + counted; ++i) {
@@ -162,6 +173,23 @@ CountedRun run(SlamLoop& loop, const std::vector<hal::RgbdFrame>& frames, int wa
       out.keyframes += result.keyframe ? 1 : 0;
       out.loop_closures += result.loop_closure ? 1 : 0;
       out.graphs_applied += result.graph_applied ? 1 : 0;
+      if (!result.graph_applied && !result.map_correction.isApprox(Eigen::Isometry3d::Identity(), 0.0)) {
+        ++out.corrections_without_graph;
+      }
+      // A solve that already holds this frame's own new key-frame (a fast solve) moves the
+      // previous key-frame by its own optimised pose, not by the correction: skipped.
+      if (result.graph_applied && !result.keyframe && previous) {
+        out.largest_correction_m = std::max(out.largest_correction_m, result.map_correction.translation().norm());
+        Eigen::Isometry3d reexpressed;
+        if (loop.optimized_pose(previous->keyframe_node, previous->keyframe_generation, previous->T_keyframe_cam,
+                                reexpressed)) {
+          const Eigen::Isometry3d corrected = result.map_correction * previous->T_world_cam;
+          out.largest_correction_mismatch_m = std::max(
+              out.largest_correction_mismatch_m, (corrected.translation() - reexpressed.translation()).norm());
+          ++out.corrections_checked;
+        }
+      }
+      previous = result;
     }
     out.tracking_thread_allocations = count.this_thread_allocations();
     out.all_thread_allocations = count.allocations();
@@ -209,6 +237,13 @@ void expect_steady_state_without_allocations(Mode mode, const std::vector<hal::R
   EXPECT_GT(counted.retired_keyframes, 0);
   EXPECT_GT(counted.loop_closures, 0);
   EXPECT_GT(counted.graphs_applied, 0);
+  std::printf("%s: %d map corrections checked, the largest %.4f m; largest mismatch with the optimised key-frames "
+              "%.2e m\n",
+              std::string(to_string(mode)).c_str(), counted.corrections_checked, counted.largest_correction_m,
+              counted.largest_correction_mismatch_m);
+  EXPECT_GT(counted.corrections_checked, 0);
+  EXPECT_LT(counted.largest_correction_mismatch_m, 1e-6);
+  EXPECT_EQ(counted.corrections_without_graph, 0);
 }
 
 TEST_F(SlamLoopAllocations, CounterSeesThisThreadApartFromOthers) {

@@ -25,6 +25,10 @@ struct PoseOutputConfig {
 /// The SLAM result of one camera frame, as the output needs it.
 struct PoseSample {
   Eigen::Isometry3d T_map_base = Eigen::Isometry3d::Identity();
+  /// The corrections of the map frame since the previous sample (a pose-graph solve applied by
+  /// the SLAM loop: T_map_new_map_old, in base frames), identity when there was none. The odom
+  /// frame takes them (REP 105), so the base's odom pose does not jump.
+  Eigen::Isometry3d map_correction = Eigen::Isometry3d::Identity();
   std::int64_t capture_ns = 0;          ///< capture time on the broadcaster's clock
   std::uint32_t frame_sequence = 0;     ///< camera frame number
   bool registered = true;               ///< false: registration failed, pose propagated
@@ -44,7 +48,8 @@ struct PoseOutputCounters {
 };
 
 /// Sends the latest pose at a fixed rate and a heartbeat at another, on one hal::CanBus, timed
-/// by a hal::Clock. The camera watchdog runs here, in the sender, so a stalled SLAM loop or
+/// by a hal::Clock. The pose goes out split as in ROS REP 105: the base in a continuous odom
+/// frame, and the odom frame in the map frame, which takes the loop-closure corrections. The camera watchdog runs here, in the sender, so a stalled SLAM loop or
 /// camera still produces heartbeats and the pose status turns LOST. Not thread-safe: one thread
 /// calls everything (the application hands samples over under its own lock). Never allocates.
 class PoseBroadcaster {
@@ -60,6 +65,10 @@ class PoseBroadcaster {
 
   /// The status the next pose cycle will carry.
   [[nodiscard]] PoseStatus status() const;
+  /// The base in the odom frame and the odom frame in the map frame, as the next cycle sends
+  /// them (T_map_base = T_map_odom * T_odom_base).
+  [[nodiscard]] Eigen::Isometry3d T_odom_base() const;
+  [[nodiscard]] const Eigen::Isometry3d& T_map_odom() const { return T_map_odom_; }
   [[nodiscard]] const PoseOutputCounters& counters() const { return counters_; }
 
  private:
@@ -79,6 +88,7 @@ class PoseBroadcaster {
   std::int64_t next_heartbeat_ns_;
   std::int64_t last_frame_ns_;
   std::optional<PoseSample> latest_;
+  Eigen::Isometry3d T_map_odom_ = Eigen::Isometry3d::Identity();
   int consecutive_failures_ = 0;
   std::uint8_t pose_counter_ = 0;
   std::uint8_t heartbeat_counter_ = 0;

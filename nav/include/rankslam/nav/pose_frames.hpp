@@ -13,11 +13,19 @@ namespace rankslam::nav {
 // Pose output frames rankslam sends to the base controller (deploy/can/rankslam.dbc, README
 // "CAN frames"). Every frame is 8 bytes, signals little-endian (Intel) and packed from bit 0 of
 // byte 0 upwards; signed signals are two's complement. One pose cycle is PoseXYYaw,
-// PoseZRollPitch and PoseQuality, in that order, all carrying the same 4-bit cycle counter.
+// PoseZRollPitch, MapOdomXYYaw, MapOdomZRollPitch and PoseQuality, in that order, all carrying
+// the same 4-bit cycle counter; PoseQuality closes the cycle.
+//
+// Frames as in ROS REP 105: the pose frames carry the base in the odom frame, which moves
+// continuously (a loop closure never makes it jump); the map-odom frames carry the odom frame
+// in the map frame, which takes every loop-closure correction. The base in the map frame is
+// T_map_base = T_map_odom * T_odom_base. Both frames start as the base frame at start-up.
 
 inline constexpr std::uint32_t kPoseXYYawId = 0x110;
 inline constexpr std::uint32_t kPoseZRollPitchId = 0x111;
 inline constexpr std::uint32_t kPoseQualityId = 0x112;
+inline constexpr std::uint32_t kMapOdomXYYawId = 0x113;
+inline constexpr std::uint32_t kMapOdomZRollPitchId = 0x114;
 inline constexpr std::uint32_t kHeartbeatId = 0x118;
 inline constexpr std::uint8_t kPoseFrameLength = 8;
 
@@ -47,7 +55,8 @@ enum class PoseStatus : std::uint8_t {
   return "unknown";
 }
 
-/// Pose of the robot base in the map frame as x, y, z and Z-Y-X Euler angles:
+/// A rigid motion (the base in the odom frame, the odom frame in the map frame) as x, y, z and
+/// Z-Y-X Euler angles:
 /// R = Rz(yaw) * Ry(pitch) * Rx(roll).
 struct PlanarPose {
   double x_m = 0.0;
@@ -63,8 +72,8 @@ struct PlanarPose {
 /// The isometry `to_planar_pose` decomposed.
 [[nodiscard]] Eigen::Isometry3d to_isometry(const PlanarPose& pose);
 
-/// `PoseXYYaw` 0x110: bits 0..21 x (int22, 1 mm), 22..43 y (int22, 1 mm), 44..59 yaw (int16,
-/// 0.01°), 60..63 cycle counter.
+/// `PoseXYYaw` 0x110 (T_odom_base) and `MapOdomXYYaw` 0x113 (T_map_odom): bits 0..21 x (int22,
+/// 1 mm), 22..43 y (int22, 1 mm), 44..59 yaw (int16, 0.01°), 60..63 cycle counter.
 struct PoseXYYaw {
   double x_m = 0.0;
   double y_m = 0.0;
@@ -72,8 +81,9 @@ struct PoseXYYaw {
   std::uint8_t counter = 0;  ///< 0..15
 };
 
-/// `PoseZRollPitch` 0x111: bits 0..21 z (int22, 1 mm), 22..37 roll (int16, 0.01°), 38..53 pitch
-/// (int16, 0.01°), 54..59 reserved (0), 60..63 cycle counter.
+/// `PoseZRollPitch` 0x111 (T_odom_base) and `MapOdomZRollPitch` 0x114 (T_map_odom): bits 0..21 z
+/// (int22, 1 mm), 22..37 roll (int16, 0.01°), 38..53 pitch (int16, 0.01°), 54..59 reserved (0),
+/// 60..63 cycle counter.
 struct PoseZRollPitch {
   double z_m = 0.0;
   double roll_deg = 0.0;
@@ -115,14 +125,20 @@ struct Heartbeat {
 
 /// Encoders quantise to the nearest count; angles are wrapped into their range first, positions
 /// saturate at ±kPositionMaxCount (PoseQuality::position_saturated tells).
-[[nodiscard]] hal::CanFrame encode_pose_xy_yaw(const PoseXYYaw& pose, std::int64_t stamp_ns);
-[[nodiscard]] hal::CanFrame encode_pose_z_roll_pitch(const PoseZRollPitch& pose, std::int64_t stamp_ns);
+/// `id` is kPoseXYYawId or kMapOdomXYYawId (kPoseZRollPitchId or kMapOdomZRollPitchId): the same
+/// layout for both transforms.
+[[nodiscard]] hal::CanFrame encode_pose_xy_yaw(const PoseXYYaw& pose, std::int64_t stamp_ns,
+                                               std::uint32_t id = kPoseXYYawId);
+[[nodiscard]] hal::CanFrame encode_pose_z_roll_pitch(const PoseZRollPitch& pose, std::int64_t stamp_ns,
+                                                     std::uint32_t id = kPoseZRollPitchId);
 [[nodiscard]] hal::CanFrame encode_pose_quality(const PoseQuality& quality, std::int64_t stamp_ns);
 [[nodiscard]] hal::CanFrame encode_heartbeat(const Heartbeat& heartbeat, std::int64_t stamp_ns);
 
 /// Decoders: nullopt when the identifier, length or an enum value is wrong.
-[[nodiscard]] std::optional<PoseXYYaw> decode_pose_xy_yaw(const hal::CanFrame& frame);
-[[nodiscard]] std::optional<PoseZRollPitch> decode_pose_z_roll_pitch(const hal::CanFrame& frame);
+[[nodiscard]] std::optional<PoseXYYaw> decode_pose_xy_yaw(const hal::CanFrame& frame,
+                                                         std::uint32_t id = kPoseXYYawId);
+[[nodiscard]] std::optional<PoseZRollPitch> decode_pose_z_roll_pitch(const hal::CanFrame& frame,
+                                                                     std::uint32_t id = kPoseZRollPitchId);
 [[nodiscard]] std::optional<PoseQuality> decode_pose_quality(const hal::CanFrame& frame);
 [[nodiscard]] std::optional<Heartbeat> decode_heartbeat(const hal::CanFrame& frame);
 

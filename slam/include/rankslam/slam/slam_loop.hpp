@@ -124,8 +124,11 @@ struct FrameResult {
   Eigen::Isometry3d T_keyframe_cam = Eigen::Isometry3d::Identity();
   /// A loop closure was accepted at this frame (a key-frame).
   bool loop_closure = false;
-  /// An optimised pose graph was applied at this frame: the pose jumped by the map correction.
+  /// An optimised pose graph was applied at this frame: the pose jumped by the map correction,
+  /// which every tracked pose took: T_world_cam(after) = map_correction * T_world_cam(before).
+  /// Identity when none was applied.
   bool graph_applied = false;
+  Eigen::Isometry3d map_correction = Eigen::Isometry3d::Identity();
   WheelCheck wheels;
   StageTimes times;
 };
