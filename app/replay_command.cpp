@@ -3,6 +3,7 @@
 #include "exit_codes.hpp"
 #include "json_writer.hpp"
 #include "progress.hpp"
+#include "status_counts.hpp"
 #include "wheel_prior.hpp"
 
 #include "rankslam/eval/metrics.hpp"
@@ -43,26 +44,6 @@ Percentiles percentiles(std::vector<double> values) {
   result.max = values.back();
   return result;
 }
-
-/// Frames by the status a consumer of the pose sees: TRACKING (registered), DEGRADED (the wheels
-/// carry the pose), LOST (neither: extrapolated or held).
-struct StatusCounts {
-  int tracking = 0;
-  int degraded = 0;
-  int lost = 0;
-  int disagreements = 0;   ///< registrations that disagreed with the wheels
-  int wheels_trusted = 0;  ///< of which the wheels overruled a weak registration
-  void add(const slam::FrameResult& result) {
-    switch (result.status) {
-      case slam::FrameStatus::kFirstFrame:
-      case slam::FrameStatus::kTracking: ++tracking; break;
-      case slam::FrameStatus::kWheels: ++degraded; break;
-      case slam::FrameStatus::kFailed: ++lost; break;
-    }
-    if (result.wheels.disagree) ++disagreements;
-    if (result.wheels.wheels_trusted) ++wheels_trusted;
-  }
-};
 
 /// One line of frames.csv.
 struct FrameRecord {

@@ -5,6 +5,8 @@
 #include "exit_codes.hpp"
 #include "json_writer.hpp"
 #include "robot_config.hpp"
+#include "status_counts.hpp"
+#include "wheel_prior.hpp"
 
 #include "rankslam/eval/trajectory.hpp"
 #include "rankslam/hal/atomic_file.hpp"
@@ -73,7 +75,39 @@ struct WheelCounters {
   std::uint64_t frames = 0;
   std::uint64_t malformed = 0;
   std::uint64_t counter_gaps = 0;  ///< rolling-counter jumps: frames lost somewhere
+  std::uint64_t unmatched = 0;     ///< replay: received frames that match no played frame
 };
+
+/// The wheel odometry of a run: fed by the output thread from its CAN socket, read by the SLAM
+/// thread for each camera frame's prior, under `mutex`.
+struct LiveWheels {
+  std::mutex mutex;
+  std::condition_variable advanced;  ///< a wheel frame was integrated
+  std::optional<WheelPrior> prior;   ///< absent when the calibration has no wheels section
+  std::int64_t newest_ns = 0;        ///< stamp of the newest integrated wheel frame
+  std::int64_t newest_arrival_ns = 0;  ///< monotonic time it arrived
+  /// Replay through the bus: the wheel frames played from the recording, whose stamps the
+  /// received frames take (matched by identifier and data, in order), so that the odometry runs
+  /// on the recording's clock as the replay camera's frames do. Empty for a live base.
+  const std::vector<hal::CanFrame>* recorded = nullptr;
+  std::size_t next_recorded = 0;
+};
+
+/// The recording stamp of a played wheel frame: the next recorded frame equal to it, looked for
+/// a few frames ahead (the bus may have dropped some). False when none matches.
+bool recorded_stamp(LiveWheels& wheels, const hal::CanFrame& frame, std::int64_t& stamp_ns) {
+  constexpr std::size_t kLookAhead = 16;
+  const std::vector<hal::CanFrame>& recorded = *wheels.recorded;
+  for (std::size_t i = wheels.next_recorded; i < recorded.size() && i < wheels.next_recorded + kLookAhead; ++i) {
+    const hal::CanFrame& candidate = recorded[i];
+    if (candidate.id == frame.id && candidate.length == frame.length && candidate.data == frame.data) {
+      stamp_ns = candidate.stamp_ns;
+      wheels.next_recorded = i + 1;
+      return true;
+    }
+  }
+  return false;
+}
 
 struct OutputResult {
   nav::PoseOutputCounters pose;
@@ -83,8 +117,8 @@ struct OutputResult {
 
 /// The output thread: pose cycles and heartbeats at their rates, wheel frames in. It owns its
 /// CAN socket; SLAM never waits for it.
-void output_thread(const RobotConfig& config, unsigned wheel_can_id, Mailbox& mailbox, const std::atomic<bool>& stop,
-                   OutputResult& result) {
+void output_thread(const RobotConfig& config, unsigned wheel_can_id, Mailbox& mailbox, LiveWheels& wheels,
+                   const std::atomic<bool>& stop, OutputResult& result) {
   socketcan::SocketCanOptions options;
   options.interface_name = config.can_interface;
   options.filters.push_back({wheel_can_id, 0x7FF, false});
@@ -119,6 +153,18 @@ void output_thread(const RobotConfig& config, unsigned wheel_can_id, Mailbox& ma
           ++result.wheels.counter_gaps;
         }
         last_counter = ticks->rolling_counter;
+        {
+          std::lock_guard lock(wheels.mutex);
+          hal::CanFrame stamped = frame;
+          if (wheels.prior && (wheels.recorded == nullptr || recorded_stamp(wheels, frame, stamped.stamp_ns))) {
+            (void)wheels.prior->update(stamped);
+            wheels.newest_ns = wheels.prior->odometry().newest_stamp_ns();
+            wheels.newest_arrival_ns = clock.now_ns();
+          } else if (wheels.prior) {
+            ++result.wheels.unmatched;
+          }
+        }
+        wheels.advanced.notify_all();
       } else {
         ++result.wheels.malformed;
       }
@@ -300,16 +346,41 @@ int run_live(const RunArgs& args) {
   Mailbox mailbox;
   std::atomic<bool> stop_output{false};
   OutputResult output;
-  std::thread sender([&] { output_thread(robot, wheel_can_id, mailbox, stop_output, output); });
+  // Wheel odometry from the bus as the motion prior: a live camera's stamps and the bus's are
+  // both CLOCK_MONOTONIC; a replayed recording's wheel frames are played onto the bus and take
+  // their recorded stamps back, the replay camera's clock. A replay without played frames has no
+  // wheel clock in common with its camera: no prior.
+  const bool play_wheels = replay_camera != nullptr && robot.play_wheel_frames && !recording.can_frames.empty();
+  LiveWheels wheels;
+  std::string wheels_off_reason;
+  if (!calibration.wheels) {
+    wheels_off_reason = "the calibration has no wheels section";
+  } else if (replay_camera != nullptr && !play_wheels) {
+    wheels_off_reason = "the recording's wheel frames are not played";
+  } else {
+    const nav::WheelOdometryConfig wheel_config;
+    if (auto error = nav::validate(wheel_config, *calibration.wheels); !error.empty()) {
+      std::cerr << "error: wheel odometry: " << error << "\n";
+      return kExitInput;
+    }
+    wheels.prior.emplace(wheel_config, *calibration.wheels, T_base_cam);
+    if (play_wheels) wheels.recorded = &recording.can_frames;
+  }
+  std::cout << "wheels: " << (wheels.prior ? "CAN frames from " + robot.can_interface + " as the motion prior"
+                                           : "not used (" + wheels_off_reason + ")")
+            << std::endl;
+  std::thread sender([&] { output_thread(robot, wheel_can_id, mailbox, wheels, stop_output, output); });
 
   std::optional<WheelPlayer> player;
-  if (robot.play_wheel_frames && !recording.can_frames.empty()) {
+  if (play_wheels) {
     player.emplace(recording.can_frames, robot.can_interface, robot.replay_rate);
     if (auto error = player->start(); !error.empty()) {
       std::cerr << "warning: wheel frames are not played: " << error << "\n";
       player.reset();
     }
   }
+  StatusCounts status_counts;
+  slam::MotionPrior prior;
 
   hal::RgbdFrame frame;
   bool interrupted = false;
@@ -344,8 +415,24 @@ int run_live(const RunArgs& args) {
       continue;
     }
     const std::int64_t capture_ns = hal::MonotonicClock{}.now_ns();
-    const slam::FrameResult result = loop.process(frame);
-    const bool registered = result.status != slam::FrameStatus::kFailed;
+    const slam::MotionPrior* frame_prior = nullptr;
+    if (wheels.prior) {
+      const std::int64_t stamp_ns = replay_camera != nullptr ? recording_stamp_ns(frame.stamp_s) : frame.stamp_ns;
+      std::unique_lock lock(wheels.mutex);
+      // The motion up to the frame is known once a wheel frame at or after its stamp is in: wait
+      // for it up to three wheel periods, while wheel frames are arriving at all.
+      const auto arriving = [&] { return hal::MonotonicClock{}.now_ns() - wheels.newest_arrival_ns < 200'000'000; };
+      (void)wheels.advanced.wait_for(lock, std::chrono::milliseconds(30),
+                                     [&] { return wheels.newest_ns >= stamp_ns || !arriving(); });
+      if (const slam::MotionPrior* wheel_prior = wheels.prior->prior_for(stamp_ns)) {
+        prior = *wheel_prior;
+        frame_prior = &prior;
+      }
+    }
+    const slam::FrameResult result = loop.process(frame, frame_prior);
+    status_counts.add(result);
+    const bool registered =
+        result.status == slam::FrameStatus::kTracking || result.status == slam::FrameStatus::kFirstFrame;
     if (!registered) ++failed_frames;
     if (trajectory.size() < robot.max_trajectory_poses) {
       trajectory.push_back({frame.stamp_s, result.T_world_cam});
@@ -358,6 +445,7 @@ int run_live(const RunArgs& args) {
     sample.capture_ns = capture_ns;
     sample.frame_sequence = frame.sequence;
     sample.registered = registered;
+    sample.wheels_only = result.status == slam::FrameStatus::kWheels;
     if (result.status != slam::FrameStatus::kFirstFrame && result.features > 0) {
       sample.inlier_percent = static_cast<std::uint8_t>(std::min(100, 100 * result.inliers / result.features));
     }
@@ -406,6 +494,25 @@ int run_live(const RunArgs& args) {
   json.string("can_interface", robot.can_interface);
   json.integer("frames", static_cast<long long>(trajectory.size()));
   json.integer("failed_frames", failed_frames);
+  json.begin_object("status_counts");
+  json.integer("TRACKING", status_counts.tracking);
+  json.integer("DEGRADED", status_counts.degraded);
+  json.integer("LOST", status_counts.lost);
+  json.end_object();
+  json.boolean("wheels_used", wheels.prior.has_value());
+  if (wheels.prior) {
+    std::lock_guard lock(wheels.mutex);
+    const WheelPriorCounters& prior_counters = wheels.prior->counters();
+    json.integer("wheel_slip_events", loop.wheel_slip_events());
+    json.integer("wheel_prior_frames", static_cast<long long>(prior_counters.with_prior));
+    json.integer("wheel_prior_missing", static_cast<long long>(prior_counters.not_covered + prior_counters.discontinuous +
+                                                               prior_counters.wrong_order));
+    json.integer("wheel_vision_disagreements", status_counts.disagreements);
+    json.integer("wheel_overruled_frames", status_counts.wheels_trusted);
+    json.integer("wheel_frames_unmatched", static_cast<long long>(output.wheels.unmatched));
+  } else {
+    json.string("wheels_off_reason", wheels_off_reason);
+  }
   json.integer("skipped_frames", replay_counters.corrupt);
   json.integer("dropped_frames", replay_counters.dropped);
   json.integer("trajectory_overflow", static_cast<long long>(trajectory_overflow));

@@ -1,7 +1,8 @@
 // Checks the CAN log of a `rankslam run` against the trajectory `rankslam replay` wrote for the
 // same recording: every pose cycle (odom pose composed with the map-odom frames) decodes to the
-// replayed pose of the frame it names within 1 mm and 0.1°, cycles and heartbeats arrive at their configured rates, the watchdog reports
-// LOST once the camera stops while heartbeats go on, and the run flushed its outputs.
+// replayed pose of the frame it names within 1 mm and 0.1°, cycles and heartbeats arrive at
+// their configured rates, the watchdog reports LOST once the camera stops while heartbeats go on,
+// the run took its wheel prior from the frames received on the bus, and it flushed its outputs.
 //
 //   pose_log_check --log CANDUMP_L --reference TRAJ --recording DIR --run-out DIR
 //                  --pose-rate HZ --heartbeat-rate HZ --watchdog-s S
@@ -19,6 +20,8 @@
 #include <map>
 #include <numbers>
 #include <optional>
+#include <regex>
+#include <sstream>
 #include <set>
 #include <string>
 #include <vector>
@@ -244,6 +247,29 @@ int main(int argc, char** argv) {
   }
   for (const char* name : {"map.ply", "report.json"}) {
     if (!std::filesystem::is_regular_file(run_out / name)) fail(std::string("the run did not write ") + name);
+  }
+  // The wheel frames received from the bus were the prior of as many frames as can.log was in
+  // replay (the report beside the reference trajectory).
+  {
+    const auto prior_frames = [](const std::filesystem::path& path) {
+      std::ifstream in(path);
+      std::stringstream text;
+      text << in.rdbuf();
+      const std::string report = text.str();
+      std::smatch match;
+      if (report.find("\"wheels_used\": true") == std::string::npos ||
+          !std::regex_search(report, match, std::regex(R"("wheel_prior_frames": (\d+))"))) {
+        return -1L;
+      }
+      return std::stol(match[1]);
+    };
+    const long run_priors = prior_frames(run_out / "report.json");
+    const long replay_priors = prior_frames(std::filesystem::path(arg["--reference"]).parent_path() / "report.json");
+    std::printf("wheel prior on %ld frames in the run (from the bus), %ld in replay (from can.log), of %zu\n", run_priors,
+                replay_priors, ref.size());
+    if (run_priors < 0 || run_priors != replay_priors || run_priors < static_cast<long>(ref.size()) * 9 / 10) {
+      fail("the run did not take the wheel prior from the bus on the frames replay had it");
+    }
   }
   std::printf("%s\n", g_failures == 0 ? "PASS" : "FAILED");
   return g_failures == 0 ? 0 : 1;

@@ -21,9 +21,10 @@ rm -rf "$work"
 mkdir -p "$work"
 "$rankslam" simulate corridor-loop --frames "$frames" --out "$work/recording" > "$work/simulate.log"
 # The test is about the CAN path, not registration: baseline tracks the corridor's first
-# metres reliably, so the compared trajectory moves. `run` takes no wheel prior from the bus yet,
-# so the reference is replay's vision-only run.
-"$rankslam" replay "$work/recording" --out "$work/replay" --quiet --mode baseline --no-wheels > "$work/replay.log"
+# metres reliably, so the compared trajectory moves. `run` takes its wheel prior from the frames
+# played onto vcan0 and received back, so the reference is replay's run with the same wheel
+# frames from can.log.
+"$rankslam" replay "$work/recording" --out "$work/replay" --quiet --mode baseline > "$work/replay.log"
 
 cat > "$work/robot.yaml" <<YAML
 camera:
