@@ -15,7 +15,7 @@ const std::map<std::string, std::set<std::string>> kKeys = {
     {"robot", {"name"}},
     {"camera", {"source", "replay_rate", "max_frames", "exit_after_end_s", "calibration", "width", "height", "fps", "ir"}},
     {"can", {"interface", "play_wheel_frames"}},
-    {"output", {"pose_rate_hz", "heartbeat_rate_hz", "watchdog_timeout_s", "lost_after_failed_frames", "dir",
+    {"output", {"pose_rate_hz", "heartbeat_rate_hz", "watchdog_timeout_s", "lost_after_failed_frames", "wheel_propagation", "dir",
                 "max_trajectory_poses"}},
 };
 
@@ -111,6 +111,7 @@ std::string load_robot_config(const std::filesystem::path& path, RobotConfig& co
     check(read(output, "output", "heartbeat_rate_hz", config.output.heartbeat_rate_hz));
     check(read(output, "output", "watchdog_timeout_s", config.output.watchdog_timeout_s));
     check(read(output, "output", "lost_after_failed_frames", config.output.lost_after_failed_frames));
+    check(read(output, "output", "wheel_propagation", config.output.wheel_propagation));
     std::string dir;
     check(read(output, "output", "dir", dir));
     if (!dir.empty()) {
@@ -143,6 +144,7 @@ std::string describe_robot_config(const RobotConfig& config) {
        << "output.heartbeat_rate_hz = " << config.output.heartbeat_rate_hz << " Hz\n"
        << "output.watchdog_timeout_s = " << config.output.watchdog_timeout_s << " s\n"
        << "output.lost_after_failed_frames = " << config.output.lost_after_failed_frames << "\n"
+       << "output.wheel_propagation = " << (config.output.wheel_propagation ? "true" : "false") << "\n"
        << "output.dir = " << config.output_dir.string() << "\n"
        << "output.max_trajectory_poses = " << config.max_trajectory_poses << "\n";
   return text.str();

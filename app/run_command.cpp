@@ -65,6 +65,8 @@ struct Mailbox {
   /// Map corrections of the samples since the output last took one: a sample that is
   /// overwritten before the output sees it must not take its correction with it.
   Eigen::Isometry3d pending_correction = Eigen::Isometry3d::Identity();
+  /// The sample's camera stamp on the wheel odometry's clock (none without wheels).
+  std::optional<std::int64_t> wheel_stamp_ns;
   std::uint64_t sample_count = 0;
   bool camera_fault = false;
   bool end_of_stream = false;
@@ -128,6 +130,7 @@ void output_thread(const RobotConfig& config, unsigned wheel_can_id, Mailbox& ma
   hal::MonotonicClock clock;
   nav::PoseBroadcaster broadcaster(config.output, bus, clock);
   std::uint64_t seen = 0;
+  std::optional<std::int64_t> sample_wheel_stamp_ns;
   std::optional<std::uint8_t> last_counter;
   hal::CanFrame frame;
   while (!stop.load()) {
@@ -138,9 +141,19 @@ void output_thread(const RobotConfig& config, unsigned wheel_can_id, Mailbox& ma
         nav::PoseSample sample = *mailbox.sample;
         sample.map_correction = mailbox.pending_correction;
         mailbox.pending_correction.setIdentity();
+        sample_wheel_stamp_ns = mailbox.wheel_stamp_ns;
         broadcaster.update(sample);
       }
       broadcaster.set_camera_state(mailbox.camera_fault, mailbox.end_of_stream);
+    }
+    if (sample_wheel_stamp_ns) {
+      // The pose cycles move the latest SLAM pose on by the wheels since its camera frame.
+      std::lock_guard lock(wheels.mutex);
+      nav::RelativeMotion motion;
+      if (wheels.prior && wheels.prior->odometry().relative_motion(*sample_wheel_stamp_ns, wheels.newest_ns, motion) ==
+                              nav::RelativeMotionStatus::kOk) {
+        broadcaster.set_wheel_motion(nav::to_isometry3d(motion.T_a_b));
+      }
     }
     const std::int64_t wait_ns = broadcaster.poll();
     // Wait for the next due frame inside receive(), which also collects wheel frames.
@@ -416,8 +429,9 @@ int run_live(const RunArgs& args) {
     }
     const std::int64_t capture_ns = hal::MonotonicClock{}.now_ns();
     const slam::MotionPrior* frame_prior = nullptr;
+    const std::int64_t wheel_stamp_ns = replay_camera != nullptr ? recording_stamp_ns(frame.stamp_s) : frame.stamp_ns;
     if (wheels.prior) {
-      const std::int64_t stamp_ns = replay_camera != nullptr ? recording_stamp_ns(frame.stamp_s) : frame.stamp_ns;
+      const std::int64_t stamp_ns = wheel_stamp_ns;
       std::unique_lock lock(wheels.mutex);
       // The motion up to the frame is known once a wheel frame at or after its stamp is in: wait
       // for it up to three wheel periods, while wheel frames are arriving at all.
@@ -455,6 +469,7 @@ int run_live(const RunArgs& args) {
       mailbox.pending_correction = T_base_cam * result.map_correction * T_cam_base * mailbox.pending_correction;
     }
     mailbox.sample = sample;
+    mailbox.wheel_stamp_ns = wheels.prior ? std::optional<std::int64_t>(wheel_stamp_ns) : std::nullopt;
     ++mailbox.sample_count;
     mailbox.camera_fault = false;
   }

@@ -50,6 +50,7 @@ void PoseBroadcaster::update(const PoseSample& sample) {
   const Eigen::Quaterniond rotation(T_map_odom_.rotation());
   T_map_odom_.linear() = rotation.normalized().toRotationMatrix();
   latest_ = sample;
+  wheel_motion_.setIdentity();
   last_frame_ns_ = clock_.now_ns();
   consecutive_failures_ = sample.registered || sample.wheels_only ? 0 : consecutive_failures_ + 1;
   ++frames_since_heartbeat_;
@@ -83,8 +84,13 @@ void PoseBroadcaster::send(const hal::CanFrame& frame) {
   }
 }
 
+void PoseBroadcaster::set_wheel_motion(const Eigen::Isometry3d& T_capture_now) {
+  if (config_.wheel_propagation) wheel_motion_ = T_capture_now;
+}
+
 Eigen::Isometry3d PoseBroadcaster::T_odom_base() const {
-  return latest_ ? Eigen::Isometry3d(T_map_odom_.inverse() * latest_->T_map_base) : Eigen::Isometry3d::Identity();
+  if (!latest_) return Eigen::Isometry3d::Identity();
+  return Eigen::Isometry3d(T_map_odom_.inverse() * latest_->T_map_base * wheel_motion_);
 }
 
 void PoseBroadcaster::send_pose_cycle(std::int64_t now_ns) {

@@ -1,6 +1,7 @@
 // Checks the CAN log of a `rankslam run` against the trajectory `rankslam replay` wrote for the
 // same recording: every pose cycle (odom pose composed with the map-odom frames) decodes to the
-// replayed pose of the frame it names within 1 mm and 0.1°, cycles and heartbeats arrive at
+// replayed pose of the frame it names, moved on by the wheel odometry since that frame, within
+// 1 mm and 0.1°, cycles and heartbeats arrive at
 // their configured rates, the watchdog reports LOST once the camera stops while heartbeats go on,
 // the run took its wheel prior from the frames received on the bus, and it flushed its outputs.
 //
@@ -9,6 +10,7 @@
 #include "rankslam/eval/trajectory.hpp"
 #include "rankslam/hal/candump.hpp"
 #include "rankslam/nav/pose_frames.hpp"
+#include "rankslam/nav/wheel_odometry.hpp"
 #include "rankslam/replay/recording.hpp"
 
 #include <algorithm>
@@ -37,6 +39,9 @@ struct Cycle {
   nav::PoseXYYaw map_odom_xy_yaw;
   nav::PoseZRollPitch map_odom_z_roll_pitch;
   nav::PoseQuality quality;
+  /// The newest wheel frame on the bus before the cycle, as an index into the recording's CAN
+  /// frames (-1: none yet).
+  long newest_wheel = -1;
 };
 
 int g_failures = 0;
@@ -87,6 +92,12 @@ int main(int argc, char** argv) {
   }
   std::vector<Cycle> cycles;
   std::vector<std::pair<std::int64_t, nav::Heartbeat>> heartbeats;
+  // The played wheel frames on the bus, matched in order to the recording's (by identifier and
+  // data), as `run` matches the ones it receives.
+  const std::vector<hal::CanFrame>& recorded = recording.can_frames;
+  std::size_t next_recorded = 0;
+  long newest_wheel = -1;
+  const std::uint32_t wheel_id = recording.calibration.wheels.value_or(hal::WheelGeometry{}).can_id;
   std::optional<Cycle> partial;
   int stage = 0;
   int broken_cycles = 0;
@@ -94,10 +105,19 @@ int main(int argc, char** argv) {
   while (std::getline(log, line)) {
     const auto frame = hal::parse_candump_line(line);
     if (!frame) continue;
-    if (frame->id == nav::kPoseXYYawId) {
+    if (frame->id == wheel_id) {
+      for (std::size_t i = next_recorded; i < recorded.size() && i < next_recorded + 16; ++i) {
+        if (recorded[i].id == frame->id && recorded[i].data == frame->data) {
+          newest_wheel = static_cast<long>(i);
+          next_recorded = i + 1;
+          break;
+        }
+      }
+    } else if (frame->id == nav::kPoseXYYawId) {
       if (stage != 0) ++broken_cycles;
       partial = Cycle{};
       partial->stamp_ns = frame->stamp_ns;
+      partial->newest_wheel = newest_wheel;
       const auto decoded = nav::decode_pose_xy_yaw(*frame);
       if (!decoded) { fail("undecodable PoseXYYaw: " + line); stage = 0; continue; }
       partial->xy_yaw = *decoded;
@@ -169,6 +189,23 @@ int main(int argc, char** argv) {
   for (const auto& pose : ref) reach_m = std::max(reach_m, pose.T_world_cam.translation().norm());
   std::printf("reference: %zu frames, farthest %.3f m from the start\n", ref.size(), reach_m);
   if (reach_m < 0.01) fail("the reference trajectory moves less than 1 cm (10 position steps); the comparison would prove nothing");
+  // Between camera frames `run` moves the pose on by the wheel odometry since the frame: the
+  // expected pose is the replayed one moved by the wheels from the frame's stamp to one of the
+  // wheel frames around the newest on the bus before the cycle (the two sockets receive in
+  // their own time), or unmoved while the wheels have not passed the frame.
+  if (!recording.calibration.wheels) fail("the recording has no wheels section");
+  nav::WheelOdometryConfig wheel_config;
+  wheel_config.history_capacity = static_cast<int>(recorded.size()) + 2;
+  nav::WheelOdometry odometry(wheel_config, recording.calibration.wheels.value_or(hal::WheelGeometry{}));
+  for (const hal::CanFrame& frame : recorded) (void)odometry.update(frame);
+  const auto wheel_motion = [&](std::int64_t from_ns, std::int64_t to_ns, Eigen::Isometry3d& T) {
+    nav::RelativeMotion motion;
+    if (odometry.relative_motion(from_ns, to_ns, motion) != nav::RelativeMotionStatus::kOk) return false;
+    T = nav::to_isometry3d(motion.T_a_b);
+    return true;
+  };
+  int propagated_cycles = 0;
+  double largest_propagation_m = 0.0;
   double max_position_m = 0.0;
   double max_rotation_deg = 0.0;
   double max_yaw_deg = 0.0;
@@ -189,7 +226,31 @@ int main(int argc, char** argv) {
                                    cycle.map_odom_xy_yaw.yaw_deg};
     const Eigen::Isometry3d T_map_base = nav::to_isometry(map_odom) * nav::to_isometry(odom);
     const nav::PlanarPose decoded = nav::to_planar_pose(T_map_base);
-    const Eigen::Isometry3d expected = T_base_cam * ref[index].T_world_cam * T_base_cam.inverse();
+    const Eigen::Isometry3d at_frame = T_base_cam * ref[index].T_world_cam * T_base_cam.inverse();
+    const std::int64_t frame_ns = std::llround(ref[index].stamp_s * 1e6) * 1000;
+    std::vector<Eigen::Isometry3d> candidates;
+    bool wheels_passed_frame = false;
+    for (long k = cycle.newest_wheel - 3; k <= cycle.newest_wheel + 2; ++k) {
+      if (k < 0 || k >= static_cast<long>(recorded.size())) continue;
+      const std::int64_t wheel_ns = recorded[static_cast<std::size_t>(k)].stamp_ns;
+      if (wheel_ns > frame_ns + 20'000'000) wheels_passed_frame = true;
+      Eigen::Isometry3d T;
+      if (wheel_ns > frame_ns && wheel_motion(frame_ns, wheel_ns, T)) candidates.push_back(at_frame * T);
+    }
+    if (!wheels_passed_frame) candidates.push_back(at_frame);
+    if (candidates.empty()) {
+      fail("no wheel motion for the cycle naming frame " + std::to_string(index));
+      continue;
+    }
+    Eigen::Isometry3d expected = candidates.front();
+    for (const Eigen::Isometry3d& candidate : candidates) {
+      if ((candidate.translation() - T_map_base.translation()).norm() < (expected.translation() - T_map_base.translation()).norm()) {
+        expected = candidate;
+      }
+    }
+    const double propagation_m = (expected.translation() - at_frame.translation()).norm();
+    if (propagation_m > 0.001) ++propagated_cycles;
+    largest_propagation_m = std::max(largest_propagation_m, propagation_m);
     const nav::PlanarPose expected_pose = nav::to_planar_pose(expected);
     max_position_m = std::max(max_position_m, (T_map_base.translation() - expected.translation()).norm());
     max_rotation_deg = std::max(max_rotation_deg, rotation_angle_deg(T_map_base, expected));
@@ -201,6 +262,9 @@ int main(int argc, char** argv) {
   if (max_position_m > 0.001) fail("a decoded position is more than 1 mm from the replayed trajectory");
   if (max_rotation_deg > 0.1 || max_yaw_deg > 0.1) fail("a decoded orientation is more than 0.1 deg from the replayed trajectory");
   if (frames_seen.size() != ref.size()) fail("not every frame's pose was sent");
+  std::printf("cycles moved on by the wheels since their frame: %d (largest %.1f mm)\n", propagated_cycles,
+              largest_propagation_m * 1e3);
+  if (propagated_cycles < static_cast<int>(compared / 10)) fail("fewer than a tenth of the cycles were moved on by the wheels");
 
   // After the last frame, the watchdog turns the status LOST while heartbeats continue.
   std::optional<std::int64_t> first_lost_ns;

@@ -3,8 +3,9 @@
 # through `rankslam run` with the replay camera and the SocketCAN driver on vcan0, its wheel
 # frames played onto vcan0; candump captures the bus; pose_log_check then requires pose cycles
 # at the configured rate that decode to the trajectory `rankslam replay` wrote for the same
-# recording within 1 mm and 0.1°, LOST after the watchdog once the recording ends with the
-# heartbeat going on, and trajectory and map flushed after SIGTERM.
+# recording, moved on by the wheels since each frame, within 1 mm and 0.1°, LOST after the
+# watchdog once the recording ends with the heartbeat going on, and trajectory and map flushed
+# after SIGTERM.
 #
 #   test/vm/pose_output_test.sh RANKSLAM POSE_LOG_CHECK WORK_DIR [FRAMES]
 #

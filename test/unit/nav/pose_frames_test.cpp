@@ -353,6 +353,42 @@ TEST(PoseBroadcaster, LoopClosureCorrectionsMoveTheMapOdomFrameNotTheOdomPose) {
   EXPECT_TRUE(broadcaster.T_map_odom().isApprox(correction, 1e-9));
 }
 
+TEST(PoseBroadcaster, WheelMotionSinceTheFrameMovesThePoseUntilTheNextFrame) {
+  RecordingBus bus;
+  ManualClock clock;
+  PoseOutputConfig config;
+  config.watchdog_timeout_s = 10.0;
+  PoseBroadcaster broadcaster(config, bus, clock);
+  PoseSample sample;
+  sample.T_map_base.translation() = Eigen::Vector3d(2.0, 1.0, 0.0);
+  sample.T_map_base.linear() = Eigen::AngleAxisd(M_PI / 2.0, Eigen::Vector3d::UnitZ()).toRotationMatrix();
+  broadcaster.update(sample);
+  run_for(broadcaster, clock, 20);
+  EXPECT_LT((last_cycle(bus.sent).T_odom_base.translation() - Eigen::Vector3d(2.0, 1.0, 0.0)).norm(), 0.001);
+  // 5 cm forward in the base frame (facing +y in the map) and 2 degrees left since the frame.
+  Eigen::Isometry3d motion = Eigen::Isometry3d::Identity();
+  motion.translation() = Eigen::Vector3d(0.05, 0.0, 0.0);
+  motion.linear() = Eigen::AngleAxisd(2.0 * M_PI / 180.0, Eigen::Vector3d::UnitZ()).toRotationMatrix();
+  broadcaster.set_wheel_motion(motion);
+  run_for(broadcaster, clock, 20);
+  const DecodedCycle moved = last_cycle(bus.sent);
+  EXPECT_LT((moved.T_odom_base.translation() - Eigen::Vector3d(2.0, 1.05, 0.0)).norm(), 0.001);
+  EXPECT_NEAR(to_planar_pose(moved.T_odom_base).yaw_deg, 92.0, 0.01);
+  // The next frame replaces the propagated pose.
+  sample.T_map_base.translation() = Eigen::Vector3d(2.0, 1.06, 0.0);
+  broadcaster.update(sample);
+  run_for(broadcaster, clock, 20);
+  EXPECT_LT((last_cycle(bus.sent).T_odom_base.translation() - Eigen::Vector3d(2.0, 1.06, 0.0)).norm(), 0.001);
+  // Switched off, the SLAM pose is re-sent unchanged.
+  config.wheel_propagation = false;
+  RecordingBus plain_bus;
+  PoseBroadcaster plain(config, plain_bus, clock);
+  plain.update(sample);
+  plain.set_wheel_motion(motion);
+  run_for(plain, clock, 20);
+  EXPECT_LT((last_cycle(plain_bus.sent).T_odom_base.translation() - Eigen::Vector3d(2.0, 1.06, 0.0)).norm(), 0.001);
+}
+
 TEST(PoseBroadcaster, WatchdogReportsLostWhileHeartbeatsContinue) {
   RecordingBus bus;
   ManualClock clock;

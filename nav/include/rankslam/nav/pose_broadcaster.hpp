@@ -17,6 +17,9 @@ struct PoseOutputConfig {
   double heartbeat_rate_hz = 10.0;   ///< Hz; Heartbeat frames per second, 0.5 .. 100
   double watchdog_timeout_s = 0.5;   ///< s; no camera frame for this long reports LOST, 0.05 .. 10
   int lost_after_failed_frames = 15; ///< consecutive failed registrations that report LOST, 1 .. 1000
+  /// Between camera frames, move the latest SLAM pose on by the wheel odometry since the frame's
+  /// capture (set_wheel_motion); false re-sends the SLAM pose unchanged.
+  bool wheel_propagation = true;
 };
 
 /// Range check naming the offending field; empty when `config` is valid.
@@ -56,8 +59,12 @@ class PoseBroadcaster {
  public:
   PoseBroadcaster(const PoseOutputConfig& config, hal::CanBus& bus, const hal::Clock& clock);
 
-  /// A camera frame was processed; its arrival (now) feeds the watchdog.
+  /// A camera frame was processed; its arrival (now) feeds the watchdog. The wheel motion since
+  /// the frame starts at identity.
   void update(const PoseSample& sample);
+  /// The base's motion since the latest sample's capture by the wheel odometry (T_base(capture)
+  /// _base(now)); with wheel_propagation the pose cycles send the sample's pose moved by it.
+  void set_wheel_motion(const Eigen::Isometry3d& T_capture_now);
   /// Camera state for the heartbeat's fault bits.
   void set_camera_state(bool fault, bool end_of_stream);
   /// Sends every frame that is due now. Returns the time until the next one is due, ns.
@@ -89,6 +96,7 @@ class PoseBroadcaster {
   std::int64_t last_frame_ns_;
   std::optional<PoseSample> latest_;
   Eigen::Isometry3d T_map_odom_ = Eigen::Isometry3d::Identity();
+  Eigen::Isometry3d wheel_motion_ = Eigen::Isometry3d::Identity();
   int consecutive_failures_ = 0;
   std::uint8_t pose_counter_ = 0;
   std::uint8_t heartbeat_counter_ = 0;
