@@ -182,6 +182,8 @@ TEST_P(SlamLoopWheels, StrongVisionOverrulesSlippingWheelsAndCountsOneEventPerSl
 TEST_P(SlamLoopWheels, WeakVisionThatDisagreesGivesWayToTheWheels) {
   SlamConfig slam_config = config();
   slam_config.wheel_strong_inliers = 10000;  // no registration is strong enough to overrule them
+  // A disagreement the frame's own test sees, yet within the loop's deviation gate (10 cm).
+  slam_config.wheel_vision_sigma_m = 0.01;
   SlamLoop loop(slam_config, pinhole());
   const MotionPrior good = sideways_prior(speed_m_);
   FrameResult result;

@@ -140,11 +140,14 @@ struct SlamConfig {
   // Wheel prior (SlamLoop::process with a MotionPrior). The registered motion is compared with
   // the wheels' under the wheel covariance plus this vision noise, frame by frame and summed
   // over a window of frames (slip adds up there while noise grows with its square root); the
-  // gate is the chi-square 99.9 % quantile of 6 degrees of freedom. The vision noise is what
-  // photometric registration showed on the simulated corridor loop against its ground truth
-  // (frame-to-frame error, median 7.6 mm / 0.27 deg, 90th percentile 17 mm / 0.57 deg).
-  double wheel_vision_sigma_m = 0.01;
-  double wheel_vision_sigma_deg = 0.5;
+  // gate is the chi-square 99.9 % quantile of 6 degrees of freedom. The vision noise covers the
+  // 90th percentile of photometric registration's frame-to-frame error on the simulated corridor
+  // loop (median 7.6 mm / 0.27 deg, 90th percentile 17 mm / 0.57 deg). With the medians' scale,
+  // 1 cm / 0.5 deg, fused registration there disagreed with slip-free wheels on 432 of 2871
+  // frames and declared 36 wheel slips (for 1 real one); with 2 cm / 1 deg, 113 and 10, the real
+  // slip still among them, and ATE 4.4 → 3.1 cm.
+  double wheel_vision_sigma_m = 0.02;
+  double wheel_vision_sigma_deg = 1.0;
   double wheel_gate_chi2 = 22.46;
   int wheel_gate_window_frames = 8;
   int wheel_strong_inliers = 40;
@@ -198,9 +201,12 @@ struct SlamConfig {
   int graph_iterations = 20;
   // Wheel edges between consecutive key-frames (with a wheel prior on every frame between them):
   // the wheel motion with its propagated covariance, plus this floor on the motion a planar base
-  // does not measure. 0 m: no wheel edges.
-  double graph_wheel_floor_m = 0.01;
-  double graph_wheel_floor_deg = 0.5;
+  // does not measure. 0 m: no wheel edges. The floor adds to every axis, so it must stay below
+  // the wheels' own noise over a key-frame step (1 cm/m over 25 cm: 5 mm) or it buries it:
+  // 1 cm / 0.5 deg per edge is 4 cm/m, and gave 3.1 cm ATE on the corridor loop against 1.7 cm
+  // with 1 mm / 0.05 deg.
+  double graph_wheel_floor_m = 0.001;
+  double graph_wheel_floor_deg = 0.05;
   int seed = 1;
 
   /// The depth-only front-end of the geometric mode (ALGORITHMS.md §3–4); its own parameter list.
