@@ -21,7 +21,7 @@ int main(int argc, char** argv) {
                          "Recording directory (TUM RGB-D layout); without it the built-in default scene is simulated and replayed")
       ->check(CLI::ExistingDirectory);
   replay_cmd->add_option("--out,-o", replay.out, "Output directory")->required();
-  replay_cmd->add_option("--mode,-m", replay.mode, "Registration: baseline, photometric, geometric or fused (default: best implemented)");
+  replay_cmd->add_option("--mode,-m", replay.mode, "Registration: baseline, photometric, geometric or fused (default: fused)");
   replay_cmd->add_option("--config,-c", replay.config, "YAML configuration (see deploy/config/default.yaml)")->check(CLI::ExistingFile);
   replay_cmd->add_option("--rate", replay.rate, "Play at this multiple of the recorded rate, dropping frames the loop cannot keep up with (0 = as fast as possible, lossless)")
       ->check(CLI::NonNegativeNumber);
@@ -50,7 +50,7 @@ int main(int argc, char** argv) {
   auto* run_cmd = app.add_subcommand("run", "Run live on the robot: sensors in, pose out over CAN");
   run_cmd->add_option("--config,-c", run.config, "Robot configuration (deploy/config/<robot>.yaml)")->required()->check(CLI::ExistingFile);
   run_cmd->add_option("--out,-o", run.out, "Where trajectory and map are flushed on exit");
-  run_cmd->add_option("--mode,-m", run.mode, "Registration: baseline, photometric, geometric or fused (default: best implemented)");
+  run_cmd->add_option("--mode,-m", run.mode, "Registration: baseline, photometric, geometric or fused (default: fused)");
 
   RecordArgs record;
   auto* record_cmd = app.add_subcommand("record", "Record the live sensors (camera, CAN) into a recording directory (TUM layout, see README)");
