@@ -27,12 +27,14 @@
 
 #include <gtest/gtest.h>
 
+#include <sys/resource.h>
 #include <unistd.h>
 
 #include <algorithm>
 #include <array>
 #include <chrono>
 #include <cstdio>
+#include <cstdlib>
 #include <filesystem>
 #include <optional>
 #include <string>
@@ -299,6 +301,51 @@ TEST_F(SlamLoopAllocations, FusedWithoutSolvesAllocatesNothingOnAnyThread) {
   EXPECT_EQ(counted.tracking_thread_allocations, 0) << describe(counted);
   EXPECT_EQ(counted.all_thread_allocations, 0);
   EXPECT_GT(counted.keyframes, 0);
+}
+
+// Peak resident set size of the process so far, MB.
+double peak_rss_mb() {
+  rusage usage{};
+  ::getrusage(RUSAGE_SELF, &usage);
+  return static_cast<double>(usage.ru_maxrss) / 1024.0;
+}
+
+// Fixed memory over a long run: the fused loop's peak RSS after 20 000 frames (the office loop
+// over and over: the key-frame store fills at about 2 200 and retires from then on) against its
+// peak after 2 000, both less the RSS before the loop (the test's decoded frames). About 9
+// minutes on two cores, so not part of the suite:
+//   test_slam_loop_alloc --gtest_also_run_disabled_tests --gtest_filter='*PeakRss*'
+// RANKSLAM_RSS_FRAMES sets another length.
+TEST_F(SlamLoopAllocations, DISABLED_PeakRssAfter20000FramesIsWithinFivePercentOfThatAfter2000) {
+  ASSERT_TRUE(error_->empty()) << *error_;
+  const char* frames_variable = std::getenv("RANKSLAM_RSS_FRAMES");
+  const int total = frames_variable != nullptr ? std::atoi(frames_variable) : 20000;
+  constexpr int kEarly = 2000;
+  ASSERT_GT(total, kEarly);
+  SlamConfig config;
+  config.mode = Mode::kFused;
+  const double before_mb = peak_rss_mb();
+  SlamLoop loop(config, recording_->calibration);
+  loop.set_synchronous_backend(false);
+  double early_mb = 0.0;
+  int tracked = 0;
+  hal::RgbdFrame frame;
+  for (int i = 0; i < total; ++i) {
+    frame = (*frames_)[static_cast<std::size_t>(i % kLoopFrames)];
+    frame.sequence = static_cast<std::uint32_t>(i);
+    frame.stamp_s = i * kFrameInterval_s;
+    frame.stamp_ns = static_cast<std::int64_t>(i) * 33'333'333;
+    tracked += loop.process(frame).status == FrameStatus::kTracking ? 1 : 0;
+    if (i + 1 == kEarly) early_mb = peak_rss_mb();
+  }
+  const double late_mb = peak_rss_mb();
+  std::printf("fused, %d frames (%d tracked, %d key-frames, %d retired, %d loop closures): peak RSS before the "
+              "loop %.1f MB, after %d frames %.1f MB, after %d frames %.1f MB; the loop's own: %.1f MB then %.1f MB "
+              "(%+.2f %%)\n",
+              total, tracked, loop.keyframes(), loop.retired_keyframes(), loop.loop_closures(), before_mb, kEarly,
+              early_mb, total, late_mb, early_mb - before_mb, late_mb - before_mb,
+              100.0 * (late_mb - early_mb) / (early_mb - before_mb));
+  EXPECT_LE(late_mb - before_mb, 1.05 * (early_mb - before_mb));
 }
 
 }  // namespace
