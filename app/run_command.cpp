@@ -208,7 +208,10 @@ class WheelPlayer {
 
   [[nodiscard]] std::string start() {
     if (auto error = bus_->open(); !error.empty()) return error;
-    thread_ = std::thread([this] { play(); });
+    thread_ = std::thread([this] {
+      play();
+      finished_ = true;
+    });
     return {};
   }
   void stop() {
@@ -221,6 +224,8 @@ class WheelPlayer {
   }
   [[nodiscard]] std::uint64_t sent() const { return sent_.load(); }
   [[nodiscard]] std::uint64_t dropped() const { return dropped_.load(); }
+  /// Every frame was sent (or the player stopped).
+  [[nodiscard]] bool finished() const { return finished_.load(); }
 
  private:
   void play() {
@@ -249,6 +254,7 @@ class WheelPlayer {
   bool stop_ = false;
   std::atomic<std::uint64_t> sent_{0};
   std::atomic<std::uint64_t> dropped_{0};
+  std::atomic<bool> finished_{false};
   std::thread thread_;
 };
 
@@ -433,11 +439,16 @@ int run_live(const RunArgs& args) {
     if (wheels.prior) {
       const std::int64_t stamp_ns = wheel_stamp_ns;
       std::unique_lock lock(wheels.mutex);
-      // The motion up to the frame is known once a wheel frame at or after its stamp is in: wait
-      // for it up to three wheel periods, while wheel frames are arriving at all.
+      // The motion up to the frame is known once a wheel frame at or after its stamp is in. A live
+      // base: wait for it up to three wheel periods, while wheel frames are arriving at all. A
+      // played recording: wait while the player plays (a lossless replay camera may run ahead
+      // of the recorded timing the wheel frames keep), so that every frame has the prior it has
+      // in `replay`.
+      const bool playing = player && !player->finished();
       const auto arriving = [&] { return hal::MonotonicClock{}.now_ns() - wheels.newest_arrival_ns < 200'000'000; };
-      (void)wheels.advanced.wait_for(lock, std::chrono::milliseconds(30),
-                                     [&] { return wheels.newest_ns >= stamp_ns || !arriving(); });
+      (void)wheels.advanced.wait_for(lock, playing ? std::chrono::milliseconds(1000) : std::chrono::milliseconds(30), [&] {
+        return wheels.newest_ns >= stamp_ns || (playing ? player->finished() : !arriving());
+      });
       if (const slam::MotionPrior* wheel_prior = wheels.prior->prior_for(stamp_ns)) {
         prior = *wheel_prior;
         frame_prior = &prior;
