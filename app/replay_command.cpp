@@ -292,27 +292,7 @@ int run_replay(const ReplayArgs& args) {
   json.integer("failed_frames", failed_frames);
   json.integer("skipped_frames", counters.corrupt);
   json.integer("dropped_frames", counters.dropped);
-  json.begin_object("status_counts");
-  json.integer("TRACKING", status_counts.tracking);
-  json.integer("DEGRADED", status_counts.degraded);
-  json.integer("LOST", status_counts.lost);
-  json.end_object();
-  json.boolean("wheels_used", wheels.has_value());
-  if (wheels) {
-    const WheelPriorCounters& prior_counters = wheels->counters();
-    const nav::WheelOdometryStats& wheel_stats = wheels->odometry().stats();
-    json.integer("wheel_slip_events", loop.wheel_slip_events());
-    json.integer("wheel_prior_frames", static_cast<long long>(prior_counters.with_prior));
-    json.integer("wheel_prior_missing", static_cast<long long>(prior_counters.not_covered + prior_counters.discontinuous +
-                                                               prior_counters.wrong_order));
-    json.integer("wheel_frames_integrated", static_cast<long long>(wheel_stats.frames_integrated));
-    json.integer("wheel_frames_missing", static_cast<long long>(wheel_stats.frames_missing));
-    json.integer("wheel_vision_disagreements", status_counts.disagreements);
-    json.integer("wheel_overruled_frames", status_counts.wheels_trusted);
-  } else {
-    json.string("wheels_off_reason", wheels_off_reason);
-    json.null("wheel_slip_events");
-  }
+  write_status_and_wheels(json, status_counts, wheels ? &*wheels : nullptr, loop.wheel_slip_events(), wheels_off_reason);
   json.integer("keyframes", loop.keyframes());
   json.integer("loop_closures", loop.loop_closures());
   json.integer("retired_keyframes", loop.retired_keyframes());

@@ -86,8 +86,7 @@ struct LiveWheels {
   std::mutex mutex;
   std::condition_variable advanced;  ///< a wheel frame was integrated
   std::optional<WheelPrior> prior;   ///< absent when the calibration has no wheels section
-  std::int64_t newest_ns = 0;        ///< stamp of the newest integrated wheel frame
-  std::int64_t newest_arrival_ns = 0;  ///< monotonic time it arrived
+  std::int64_t newest_arrival_ns = 0;  ///< monotonic time the newest wheel frame arrived
   /// Replay through the bus: the wheel frames played from the recording, whose stamps the
   /// received frames take (matched by identifier and data, in order), so that the odometry runs
   /// on the recording's clock as the replay camera's frames do. Empty for a live base.
@@ -150,7 +149,8 @@ void output_thread(const RobotConfig& config, unsigned wheel_can_id, Mailbox& ma
       // The pose cycles move the latest SLAM pose on by the wheels since its camera frame.
       std::lock_guard lock(wheels.mutex);
       nav::RelativeMotion motion;
-      if (wheels.prior && wheels.prior->odometry().relative_motion(*sample_wheel_stamp_ns, wheels.newest_ns, motion) ==
+      if (wheels.prior && wheels.prior->odometry().relative_motion(
+                              *sample_wheel_stamp_ns, wheels.prior->odometry().newest_stamp_ns(), motion) ==
                               nav::RelativeMotionStatus::kOk) {
         broadcaster.set_wheel_motion(nav::to_isometry3d(motion.T_a_b));
       }
@@ -171,7 +171,6 @@ void output_thread(const RobotConfig& config, unsigned wheel_can_id, Mailbox& ma
           hal::CanFrame stamped = frame;
           if (wheels.prior && (wheels.recorded == nullptr || recorded_stamp(wheels, frame, stamped.stamp_ns))) {
             (void)wheels.prior->update(stamped);
-            wheels.newest_ns = wheels.prior->odometry().newest_stamp_ns();
             wheels.newest_arrival_ns = clock.now_ns();
           } else if (wheels.prior) {
             ++result.wheels.unmatched;
@@ -437,7 +436,6 @@ int run_live(const RunArgs& args) {
     const slam::MotionPrior* frame_prior = nullptr;
     const std::int64_t wheel_stamp_ns = replay_camera != nullptr ? recording_stamp_ns(frame.stamp_s) : frame.stamp_ns;
     if (wheels.prior) {
-      const std::int64_t stamp_ns = wheel_stamp_ns;
       std::unique_lock lock(wheels.mutex);
       // The motion up to the frame is known once a wheel frame at or after its stamp is in. A live
       // base: wait for it up to three wheel periods, while wheel frames are arriving at all. A
@@ -447,9 +445,10 @@ int run_live(const RunArgs& args) {
       const bool playing = player && !player->finished();
       const auto arriving = [&] { return hal::MonotonicClock{}.now_ns() - wheels.newest_arrival_ns < 200'000'000; };
       (void)wheels.advanced.wait_for(lock, playing ? std::chrono::milliseconds(1000) : std::chrono::milliseconds(30), [&] {
-        return wheels.newest_ns >= stamp_ns || (playing ? player->finished() : !arriving());
+        return wheels.prior->odometry().newest_stamp_ns() >= wheel_stamp_ns ||
+               (playing ? player->finished() : !arriving());
       });
-      if (const slam::MotionPrior* wheel_prior = wheels.prior->prior_for(stamp_ns)) {
+      if (const slam::MotionPrior* wheel_prior = wheels.prior->prior_for(wheel_stamp_ns)) {
         prior = *wheel_prior;
         frame_prior = &prior;
       }
@@ -520,25 +519,10 @@ int run_live(const RunArgs& args) {
   json.string("can_interface", robot.can_interface);
   json.integer("frames", static_cast<long long>(trajectory.size()));
   json.integer("failed_frames", failed_frames);
-  json.begin_object("status_counts");
-  json.integer("TRACKING", status_counts.tracking);
-  json.integer("DEGRADED", status_counts.degraded);
-  json.integer("LOST", status_counts.lost);
-  json.end_object();
-  json.boolean("wheels_used", wheels.prior.has_value());
-  if (wheels.prior) {
-    std::lock_guard lock(wheels.mutex);
-    const WheelPriorCounters& prior_counters = wheels.prior->counters();
-    json.integer("wheel_slip_events", loop.wheel_slip_events());
-    json.integer("wheel_prior_frames", static_cast<long long>(prior_counters.with_prior));
-    json.integer("wheel_prior_missing", static_cast<long long>(prior_counters.not_covered + prior_counters.discontinuous +
-                                                               prior_counters.wrong_order));
-    json.integer("wheel_vision_disagreements", status_counts.disagreements);
-    json.integer("wheel_overruled_frames", status_counts.wheels_trusted);
-    json.integer("wheel_frames_unmatched", static_cast<long long>(output.wheels.unmatched));
-  } else {
-    json.string("wheels_off_reason", wheels_off_reason);
-  }
+  // The sender has stopped: the wheels need no lock any more.
+  write_status_and_wheels(json, status_counts, wheels.prior ? &*wheels.prior : nullptr, loop.wheel_slip_events(),
+                          wheels_off_reason);
+  if (wheels.prior) json.integer("wheel_frames_unmatched", static_cast<long long>(output.wheels.unmatched));
   json.integer("skipped_frames", replay_counters.corrupt);
   json.integer("dropped_frames", replay_counters.dropped);
   json.integer("trajectory_overflow", static_cast<long long>(trajectory_overflow));

@@ -13,6 +13,14 @@ std::int64_t period_ns(double rate_hz) { return static_cast<std::int64_t>(std::l
 
 bool within(double value, double min, double max) { return value >= min && value <= max; }
 
+// The two frames one transform of a pose cycle takes.
+PoseXYYaw xy_yaw_of(const PlanarPose& pose, std::uint8_t counter) {
+  return {pose.x_m, pose.y_m, pose.yaw_deg, counter};
+}
+PoseZRollPitch z_roll_pitch_of(const PlanarPose& pose, std::uint8_t counter) {
+  return {pose.z_m, pose.roll_deg, pose.pitch_deg, counter};
+}
+
 std::string out_of_range(const char* name, double value, const char* range) {
   std::ostringstream text;
   text << name << " = " << value << " is outside " << range;
@@ -97,18 +105,6 @@ void PoseBroadcaster::send_pose_cycle(std::int64_t now_ns) {
   const PoseStatus current = status();
   const PlanarPose pose = to_planar_pose(T_odom_base());
   const PlanarPose map_odom = to_planar_pose(T_map_odom_);
-  PoseXYYaw xy_yaw;
-  xy_yaw.x_m = pose.x_m;
-  xy_yaw.y_m = pose.y_m;
-  xy_yaw.yaw_deg = pose.yaw_deg;
-  xy_yaw.counter = pose_counter_;
-  PoseZRollPitch z_roll_pitch;
-  z_roll_pitch.z_m = pose.z_m;
-  z_roll_pitch.roll_deg = pose.roll_deg;
-  z_roll_pitch.pitch_deg = pose.pitch_deg;
-  z_roll_pitch.counter = pose_counter_;
-  const PoseXYYaw map_odom_xy_yaw{map_odom.x_m, map_odom.y_m, map_odom.yaw_deg, pose_counter_};
-  const PoseZRollPitch map_odom_z_roll_pitch{map_odom.z_m, map_odom.roll_deg, map_odom.pitch_deg, pose_counter_};
   PoseQuality quality;
   quality.status = current;
   quality.position_saturated = position_saturates(pose) || position_saturates(map_odom);
@@ -120,10 +116,10 @@ void PoseBroadcaster::send_pose_cycle(std::int64_t now_ns) {
     quality.inlier_percent = latest_->inlier_percent;
   }
   // The SLAM loop does not estimate its covariance yet: sigmas stay "unknown" rather than guessed.
-  send(encode_pose_xy_yaw(xy_yaw, now_ns));
-  send(encode_pose_z_roll_pitch(z_roll_pitch, now_ns));
-  send(encode_pose_xy_yaw(map_odom_xy_yaw, now_ns, kMapOdomXYYawId));
-  send(encode_pose_z_roll_pitch(map_odom_z_roll_pitch, now_ns, kMapOdomZRollPitchId));
+  send(encode_pose_xy_yaw(xy_yaw_of(pose, pose_counter_), now_ns));
+  send(encode_pose_z_roll_pitch(z_roll_pitch_of(pose, pose_counter_), now_ns));
+  send(encode_pose_xy_yaw(xy_yaw_of(map_odom, pose_counter_), now_ns, kMapOdomXYYawId));
+  send(encode_pose_z_roll_pitch(z_roll_pitch_of(map_odom, pose_counter_), now_ns, kMapOdomZRollPitchId));
   send(encode_pose_quality(quality, now_ns));
   pose_counter_ = static_cast<std::uint8_t>((pose_counter_ + 1U) % kPoseCounterModulus);
   ++counters_.pose_cycles;

@@ -52,8 +52,9 @@ struct PoseOutputCounters {
 
 /// Sends the latest pose at a fixed rate and a heartbeat at another, on one hal::CanBus, timed
 /// by a hal::Clock. The pose goes out split as in ROS REP 105: the base in a continuous odom
-/// frame, and the odom frame in the map frame, which takes the loop-closure corrections. The camera watchdog runs here, in the sender, so a stalled SLAM loop or
-/// camera still produces heartbeats and the pose status turns LOST. Not thread-safe: one thread
+/// frame, and the odom frame in the map frame, which takes the loop-closure corrections. The
+/// camera watchdog runs here, in the sender, so a stalled SLAM loop or camera still produces
+/// heartbeats and the pose status turns LOST. Not thread-safe: one thread
 /// calls everything (the application hands samples over under its own lock). Never allocates.
 class PoseBroadcaster {
  public:
