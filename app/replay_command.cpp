@@ -63,15 +63,16 @@ std::string frames_csv(const std::vector<FrameRecord>& records) {
   std::string text =
       "# stamp status inliers prior compared frame_distance_sq window_distance_sq disagree vision_trusted "
       "wheels_trusted slip_event photometric_matches photometric_inliers geometric_matches geometric_inliers "
-      "photometric_weight\n";
-  char line[256];
+      "photometric_weight forward_residual_m lateral_residual_m yaw_residual_deg height_residual_m tilt_residual_deg\n";
+  char line[320];
   for (const FrameRecord& r : records) {
-    std::snprintf(line, sizeof line, "%.6f %s %d %d %d %.3f %.3f %d %d %d %d %d %d %d %d %.3f\n", r.stamp_s,
+    std::snprintf(line, sizeof line, "%.6f %s %d %d %d %.3f %.3f %d %d %d %d %d %d %d %d %.3f %.5f %.5f %.4f %.5f %.4f\n", r.stamp_s,
                   std::string(slam::to_string(r.status)).c_str(), r.inliers, r.wheels.prior_given ? 1 : 0,
                   r.wheels.compared ? 1 : 0, r.wheels.frame_distance_sq, r.wheels.window_distance_sq,
                   r.wheels.disagree ? 1 : 0, r.wheels.vision_trusted ? 1 : 0, r.wheels.wheels_trusted ? 1 : 0,
                   r.wheels.slip_event ? 1 : 0, r.photometric_matches, r.photometric_inliers, r.geometric_matches,
-                  r.geometric_inliers, r.photometric_weight);
+                  r.geometric_inliers, r.photometric_weight, r.wheels.forward_residual_m, r.wheels.lateral_residual_m,
+                  r.wheels.yaw_residual_deg, r.wheels.height_residual_m, r.wheels.tilt_residual_deg);
     text += line;
   }
   return text;

@@ -132,6 +132,7 @@ MotionPrior camera_motion_prior(double x_m, double y_m, double yaw_rad, const Ei
 SlamLoop::SlamLoop(const SlamConfig& config, const hal::Calibration& calibration)
     : config_(config),
       camera_(calibration.rgb, calibration.depth_scale),
+      T_base_cam_(calibration.rgb.T_base_cam),
       orb_(config_, camera_),
       infrared_orb_(config_, camera_, config_.ir_orb_fast_threshold),
       estimator_(config_, static_cast<std::size_t>(config.orb_features) * 2 +
@@ -439,6 +440,7 @@ bool SlamLoop::check_against_wheels(const MotionPrior& prior, const Eigen::Isome
       Eigen::Vector3d::Constant(config_.wheel_vision_sigma_m * config_.wheel_vision_sigma_m);
   const Matrix6d vision_covariance = vision_variance.asDiagonal();
   check.frame_distance_sq = mahalanobis_sq(residual, prior.covariance + vision_covariance);
+  describe_in_base_frame(registered, prior.T_previous_current, check);
 
   // Over the window the residuals add up to (to first order) the registered motion over the
   // window against the wheels' over it; both noises add up frame by frame. (Registrations
@@ -458,10 +460,59 @@ bool SlamLoop::check_against_wheels(const MotionPrior& prior, const Eigen::Isome
   // Until the window is full its sum says no more than the frame alone.
   check.window_distance_sq =
       wheel_window_size_ == wheel_window_.size() ? mahalanobis_sq(window_residual, window_covariance) : 0.0;
-
   check.disagree = check.frame_distance_sq > config_.wheel_gate_chi2 || check.window_distance_sq > config_.wheel_gate_chi2;
+
+  // A planar base can make the residual: nothing across the drive direction, in height or in
+  // tilt beyond the vision noise. Along it the corridor's registrations err by up to 8 cm, so
+  // the forward residual says too little to be tested.
+  const bool planar = std::abs(check.lateral_residual_m) <= config_.wheel_vision_sigma_m &&
+                      std::abs(check.height_residual_m) <= config_.wheel_vision_sigma_m &&
+                      check.tilt_residual_deg <= config_.wheel_vision_sigma_deg;
+  check.slip_shaped = planar && std::abs(check.yaw_residual_deg) >= config_.wheel_slip_yaw_deg;
+  const bool strong = inliers >= config_.wheel_strong_inliers;
+
+  if (vision_holds_) {
+    // A disagreement vision won lasts for as long as vision keeps disagreeing in a way the base
+    // can move. With vision holding the pose, a slip shows only its growth over one frame: it
+    // lasts while that turns the same way at no less than the least rate that declares a slip
+    // (wheel_slip_yaw_deg over wheel_slip_min_frames).
+    const bool still_slipping =
+        slip_sign_ * check.yaw_residual_deg >= config_.wheel_slip_yaw_deg / config_.wheel_slip_min_frames;
+    if ((check.disagree || check.slip_shaped || still_slipping) && planar) {
+      check.vision_trusted = true;
+      check.disagree_in_a_row = ++disagree_in_a_row_;
+      return true;
+    }
+    vision_holds_ = false;
+    // What the window holds was vision's to explain; the wheels are compared afresh.
+    wheel_window_size_ = 0;
+    wheel_window_next_ = 0;
+  }
+  const int turn = check.yaw_residual_deg > 0.0 ? 1 : -1;
+  if (std::abs(check.yaw_residual_deg) < config_.wheel_slip_yaw_deg) {
+    turning_in_a_row_ = 0;
+  } else {
+    turning_in_a_row_ = turn == turning_sign_ ? turning_in_a_row_ + 1 : 1;
+    turning_sign_ = turn;
+  }
+  slip_shaped_in_a_row_ = check.slip_shaped ? slip_shaped_in_a_row_ + 1 : 0;
+  disagree_in_a_row_ = check.disagree && !check.slip_shaped && planar && strong ? disagree_in_a_row_ + 1 : 0;
+  const bool slip = slip_shaped_in_a_row_ >= config_.wheel_slip_min_frames ||
+                    turning_in_a_row_ >= config_.wheel_slip_heading_frames;
+  if (slip || disagree_in_a_row_ >= config_.wheel_override_min_frames) {
+    // One wheel slipped, or the base moved without its wheels: vision keeps the pose.
+    check.vision_trusted = true;
+    check.slip_event = true;
+    check.disagree_in_a_row = slip ? std::max(slip_shaped_in_a_row_, turning_in_a_row_) : disagree_in_a_row_;
+    ++wheel_slip_events_;
+    vision_holds_ = true;
+    slip_sign_ = slip ? turn : 0;
+    disagree_in_a_row_ = check.disagree_in_a_row;
+    slip_shaped_in_a_row_ = 0;
+    turning_in_a_row_ = 0;
+    return true;
+  }
   if (!check.disagree) {
-    disagree_in_a_row_ = 0;
     // Both measure the same motion: combine them by their covariances (a Kalman update of the
     // prior by the registration), exp(K·r)·prior with K = Σ_wheels (Σ_wheels + Σ_vision)⁻¹.
     // Motion the wheels cannot see (across the floor plane) has no wheel variance and keeps the
@@ -476,31 +527,29 @@ bool SlamLoop::check_against_wheels(const MotionPrior& prior, const Eigen::Isome
     check.fused = true;
     return true;
   }
-  if (inliers >= config_.wheel_strong_inliers) {
-    // Enough inliers that the scene, not a chance alignment, fixed the motion. A single such
-    // frame is more often a registration error than slip (simulated corridor loop: the
-    // disagreeing registrations were off by 35 mm median, the wheels by 0.04 mm), so the wheels
-    // keep the pose until the disagreement has lasted wheel_slip_min_frames: then the wheels
-    // slipped (or the robot was moved) and vision is trusted for as long as it lasts.
-    check.disagree_in_a_row = ++disagree_in_a_row_;
-    if (disagree_in_a_row_ < config_.wheel_slip_min_frames) {
-      check.wheels_trusted = true;
-      return false;
-    }
-    check.vision_trusted = true;
-    if (disagree_in_a_row_ == config_.wheel_slip_min_frames) {
-      check.slip_event = true;
-      ++wheel_slip_events_;
-    }
-    return true;
-  }
-  if (check.frame_distance_sq <= config_.wheel_gate_chi2) {
-    // Only the window disagrees: slip the strong frames before saw; this frame itself agrees.
-    return true;
-  }
+  // A registration error until shown otherwise (simulated corridor loop: single disagreeing
+  // registrations were off by 35 mm median, the wheels by 0.04 mm).
   check.wheels_trusted = true;
-  check.disagree_in_a_row = disagree_in_a_row_;
+  check.disagree_in_a_row = std::max(slip_shaped_in_a_row_, disagree_in_a_row_);
   return false;
+}
+
+void SlamLoop::describe_in_base_frame(const Eigen::Isometry3d& registered, const Eigen::Isometry3d& wheels,
+                                      WheelCheck& check) const {
+  const Eigen::Isometry3d T_cam_base = T_base_cam_.inverse();
+  const Eigen::Isometry3d vision_base = T_base_cam_ * registered * T_cam_base;
+  const Eigen::Isometry3d wheels_base = T_base_cam_ * wheels * T_cam_base;
+  const Eigen::Vector3d step = vision_base.translation() - wheels_base.translation();
+  check.forward_residual_m = step.x();
+  check.lateral_residual_m = step.y();
+  check.height_residual_m = step.z();
+  const Eigen::Matrix3d& rotation = vision_base.linear();
+  const Eigen::Matrix3d& wheel_rotation = wheels_base.linear();
+  const double yaw_rad = std::remainder(
+      std::atan2(rotation(1, 0), rotation(0, 0)) - std::atan2(wheel_rotation(1, 0), wheel_rotation(0, 0)), 2.0 * M_PI);
+  check.yaw_residual_deg = yaw_rad * 180.0 / M_PI;
+  // The wheels' rotation is about the vertical alone: vision's tilt of the vertical is all residual.
+  check.tilt_residual_deg = std::acos(std::clamp(rotation(2, 2), -1.0, 1.0)) * 180.0 / M_PI;
 }
 
 FrameResult SlamLoop::process(const hal::RgbdFrame& frame) { return process(frame, nullptr); }
@@ -646,10 +695,13 @@ void SlamLoop::finish_frame(const hal::RgbdFrame& frame, bool have_depth, const 
                             const MotionPrior* prior, FrameResult& result) {
   accumulate_wheel_motion(prior);
   if (!result.wheels.compared) {
-    // The window sums consecutive compared frames only.
+    // The window and the runs count consecutive compared frames only.
     wheel_window_size_ = 0;
     wheel_window_next_ = 0;
     disagree_in_a_row_ = 0;
+    slip_shaped_in_a_row_ = 0;
+    turning_in_a_row_ = 0;
+    vision_holds_ = false;
   }
   if (result.status == FrameStatus::kTracking) {
     result.T_world_cam = rigid(result.T_world_cam);

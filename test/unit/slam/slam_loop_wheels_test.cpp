@@ -1,5 +1,5 @@
 // The SLAM loop with a wheel-odometry prior: the prior as prediction and fallback, and the
-// comparison of registrations with it (slip overruled by strong vision, weak vision overruled by
+// comparison of registrations with it (a slipping wheel overruled by vision, vision errors by
 // the wheels).
 #include "rankslam/slam/slam_loop.hpp"
 #include "wall_sequence.hpp"
@@ -18,6 +18,13 @@ Eigen::Isometry3d camera_on_base() {
   T_base_cam.linear() << 0.0, 0.0, 1.0, -1.0, 0.0, 0.0, 0.0, -1.0, 0.0;
   T_base_cam.translation() = Eigen::Vector3d(0.2, 0.0, 0.5);
   return T_base_cam;
+}
+
+// The wall sequence's camera on that base: the loop compares vision and wheels in base terms.
+hal::Calibration pinhole_on_base() {
+  hal::Calibration calibration = pinhole();
+  calibration.rgb.T_base_cam = camera_on_base();
+  return calibration;
 }
 
 // Wheel noise over one frame: 1 mm in x and y, 0.26 deg in yaw.
@@ -90,7 +97,7 @@ class SlamLoopWheels : public ::testing::TestWithParam<Mode> {
 };
 
 TEST_P(SlamLoopWheels, AgreeingWheelsPredictAndVisionKeepsThePose) {
-  SlamLoop loop(config(), pinhole());
+  SlamLoop loop(config(), pinhole_on_base());
   FrameResult result;
   const MotionPrior prior = sideways_prior(speed_m_);
   for (int i = 0; i <= 20; ++i) {
@@ -109,7 +116,7 @@ TEST_P(SlamLoopWheels, AgreeingWheelsPredictAndVisionKeepsThePose) {
 TEST_P(SlamLoopWheels, BlankFramesFollowTheWheelsForAsLongAsTheyLast) {
   SlamConfig slam_config = config();
   slam_config.max_extrapolated_frames = 5;  // without wheels the pose would hold after 5 frames
-  SlamLoop loop(slam_config, pinhole());
+  SlamLoop loop(slam_config, pinhole_on_base());
   const MotionPrior prior = sideways_prior(speed_m_);
   FrameResult result;
   for (int i = 0; i < 5; ++i) result = loop.process(wall_.frame(4 * i, static_cast<std::uint32_t>(i)), &prior);
@@ -133,45 +140,52 @@ TEST_P(SlamLoopWheels, BlankFramesFollowTheWheelsForAsLongAsTheyLast) {
   EXPECT_NEAR(result.T_world_cam.translation().x(), WallSequence::metres(4 * 45), 0.01);
 }
 
-TEST_P(SlamLoopWheels, StrongVisionOverrulesSlippingWheelsAndCountsOneEventPerSlip) {
+TEST_P(SlamLoopWheels, ASlippingWheelGivesThePoseToVisionAndCountsOneEventPerSlip) {
   SlamConfig slam_config = config();
-  slam_config.wheel_strong_inliers = slam_config.min_inliers;  // every accepted registration is strong
   // Noise-free synthetic images register far better than a real scene.
-  slam_config.wheel_vision_sigma_m = 0.002;
-  slam_config.wheel_vision_sigma_deg = 0.1;
-  SlamLoop loop(slam_config, pinhole());
+  slam_config.wheel_vision_sigma_m = 0.005;
+  slam_config.wheel_vision_sigma_deg = 0.3;
+  SlamLoop loop(slam_config, pinhole_on_base());
   const MotionPrior good = sideways_prior(speed_m_);
   // One wheel over-counting: 0.6 deg of yaw per frame that the camera never turned.
   const MotionPrior slipping = sideways_prior(speed_m_, 0.6 * M_PI / 180.0);
   FrameResult result;
   int frame = 0;
-  const auto drive = [&](const MotionPrior& prior, int frames, int& disagreeing) {
-    disagreeing = 0;
+  struct Counts {
+    int slip_shaped = 0;
+    int vision_trusted = 0;
+  };
+  const auto drive = [&](const MotionPrior& prior, int frames) {
+    Counts counts;
     for (int k = 0; k < frames; ++k, ++frame) {
       result = loop.process(wall_.frame(4 * frame, static_cast<std::uint32_t>(frame)), &prior);
       if (frame == 0) continue;
-      if (result.wheels.disagree) {
-        ++disagreeing;
-        // The first frames of a disagreement keep the wheels; from wheel_slip_min_frames on, vision.
-        const bool slip_confirmed = result.wheels.disagree_in_a_row >= slam_config.wheel_slip_min_frames;
-        EXPECT_EQ(result.wheels.vision_trusted, slip_confirmed) << "frame " << frame;
-        EXPECT_EQ(result.status, slip_confirmed ? FrameStatus::kTracking : FrameStatus::kWheels) << "frame " << frame;
-      } else {
-        ASSERT_EQ(result.status, FrameStatus::kTracking) << "frame " << frame << ": " << result.failure_reason;
+      EXPECT_TRUE(result.wheels.compared) << "frame " << frame << ": " << result.failure_reason;
+      if (result.wheels.slip_shaped) ++counts.slip_shaped;
+      if (result.wheels.vision_trusted) {
+        ++counts.vision_trusted;
+        EXPECT_EQ(result.status, FrameStatus::kTracking) << "frame " << frame;
       }
+      // Across the drive direction, in height and in tilt vision and the slipping wheels agree.
+      EXPECT_LT(std::abs(result.wheels.lateral_residual_m), slam_config.wheel_vision_sigma_m) << "frame " << frame;
+      EXPECT_LT(result.wheels.tilt_residual_deg, slam_config.wheel_vision_sigma_deg) << "frame " << frame;
     }
+    return counts;
   };
-  int disagreeing = 0;
   // The texture lasts 50 frames of 4 px.
-  drive(good, 8, disagreeing);
-  EXPECT_EQ(disagreeing, 0);
-  drive(slipping, 12, disagreeing);
-  EXPECT_GE(disagreeing, 4);
+  Counts counts = drive(good, 8);
+  EXPECT_EQ(counts.slip_shaped, 0);
+  EXPECT_EQ(counts.vision_trusted, 0);
+  // The heading residual grows 0.6 deg a frame while the wheels keep the pose: slip-shaped from
+  // the second frame (1.2 deg), a slip at the fourth. Then vision holds it while the wheels go on
+  // turning 0.6 deg a frame, more than 0.8 / 3.
+  counts = drive(slipping, 12);
   EXPECT_EQ(loop.wheel_slip_events(), 1);
-  drive(good, 12, disagreeing);
+  EXPECT_EQ(counts.vision_trusted, 12 - 3);
+  counts = drive(good, 12);
   EXPECT_EQ(loop.wheel_slip_events(), 1);
-  EXPECT_FALSE(result.wheels.disagree) << "the disagreement outlasts the slip";
-  drive(slipping, 12, disagreeing);
+  EXPECT_EQ(counts.vision_trusted, 0) << "the slip outlasts the wheels' error";
+  drive(slipping, 12);
   EXPECT_EQ(loop.wheel_slip_events(), 2);
   // Vision kept the pose on the wall's true path: of the wheels' yaw only the frames before each
   // slip was confirmed remain (the next registrations against the reference take it back out).
@@ -179,12 +193,76 @@ TEST_P(SlamLoopWheels, StrongVisionOverrulesSlippingWheelsAndCountsOneEventPerSl
   EXPECT_LT(Eigen::AngleAxisd(result.T_world_cam.rotation()).angle(), 0.01);
 }
 
+// Strong vision that disagrees with the wheels as the base cannot move (across its drive
+// direction) is a registration error for as long as it lasts; a disagreement the base can make
+// (along it, a robot pushed with its wheels locked) goes to vision after wheel_override_min_frames.
+TEST_P(SlamLoopWheels, StrongVisionWinsOnlyADisagreementTheBaseCanMake) {
+  SlamConfig slam_config = config();
+  slam_config.wheel_strong_inliers = slam_config.min_inliers;  // every accepted registration is strong
+  slam_config.wheel_vision_sigma_m = 0.005;
+  slam_config.wheel_vision_sigma_deg = 0.3;
+  slam_config.wheel_override_min_frames = 3;
+  // The wall sequence moves the camera along its x axis. Looking forward, that is across the
+  // base's drive direction; looking to the left side (camera x = base x, y = −base z, z = base y),
+  // along it.
+  Eigen::Isometry3d looking_left = Eigen::Isometry3d::Identity();
+  looking_left.linear() << 1.0, 0.0, 0.0, 0.0, 0.0, 1.0, 0.0, -1.0, 0.0;
+  looking_left.translation() = Eigen::Vector3d(0.0, 0.1, 0.5);
+  struct Case {
+    const char* name;
+    Eigen::Isometry3d T_base_cam;
+    double base_x_per_camera_x;
+    double base_y_per_camera_x;
+    bool base_can_make_it;
+  };
+  for (const Case& c : {Case{"across", camera_on_base(), 0.0, -1.0, false}, Case{"along", looking_left, 1.0, 0.0, true}}) {
+    SCOPED_TRACE(c.name);
+    hal::Calibration calibration = pinhole();
+    calibration.rgb.T_base_cam = c.T_base_cam;
+    SlamLoop loop(slam_config, calibration);
+    const auto prior_for = [&](double camera_x_m) {
+      return camera_motion_prior(c.base_x_per_camera_x * camera_x_m, c.base_y_per_camera_x * camera_x_m, 0.0,
+                                 frame_covariance(), c.T_base_cam);
+    };
+    const MotionPrior good = prior_for(speed_m_);
+    // 3 cm a frame the camera did not move (6 sigma).
+    const MotionPrior wrong = prior_for(speed_m_ + 0.03);
+    int frame = 0;
+    FrameResult result;
+    for (; frame < 5; ++frame) result = loop.process(wall_.frame(4 * frame, static_cast<std::uint32_t>(frame)), &good);
+    ASSERT_EQ(result.status, FrameStatus::kTracking);
+    // Three frames: while the wheels keep the pose their error adds up to 9 cm, inside the loop's
+    // 10 cm deviation gate.
+    for (int k = 1; k <= 3; ++k, ++frame) {
+      result = loop.process(wall_.frame(4 * frame, static_cast<std::uint32_t>(frame)), &wrong);
+      ASSERT_TRUE(result.wheels.compared) << "frame " << frame << ": " << result.failure_reason;
+      EXPECT_TRUE(result.wheels.disagree) << "frame " << frame;
+      EXPECT_FALSE(result.wheels.slip_shaped) << "frame " << frame;
+      const bool vision_wins = c.base_can_make_it && k >= slam_config.wheel_override_min_frames;
+      EXPECT_EQ(result.wheels.vision_trusted, vision_wins)
+          << "frame " << frame << ": residual forward " << result.wheels.forward_residual_m << " m, across "
+          << result.wheels.lateral_residual_m << " m, height " << result.wheels.height_residual_m << " m, yaw "
+          << result.wheels.yaw_residual_deg << " deg, tilt " << result.wheels.tilt_residual_deg << " deg";
+      EXPECT_EQ(result.status, vision_wins ? FrameStatus::kTracking : FrameStatus::kWheels) << "frame " << frame;
+    }
+    EXPECT_EQ(loop.wheel_slip_events(), c.base_can_make_it ? 1 : 0);
+    // Vision holds the pose while the disagreement lasts; the wheels' error stays out of it.
+    for (int k = 0; k < 3 && c.base_can_make_it; ++k, ++frame) {
+      result = loop.process(wall_.frame(4 * frame, static_cast<std::uint32_t>(frame)), &wrong);
+      EXPECT_TRUE(result.wheels.vision_trusted) << "frame " << frame;
+    }
+    if (c.base_can_make_it) {
+      EXPECT_NEAR(result.T_world_cam.translation().x(), WallSequence::metres(4 * (frame - 1)), 0.01);
+    }
+  }
+}
+
 TEST_P(SlamLoopWheels, WeakVisionThatDisagreesGivesWayToTheWheels) {
   SlamConfig slam_config = config();
   slam_config.wheel_strong_inliers = 10000;  // no registration is strong enough to overrule them
   // A disagreement the frame's own test sees, yet within the loop's deviation gate (10 cm).
   slam_config.wheel_vision_sigma_m = 0.01;
-  SlamLoop loop(slam_config, pinhole());
+  SlamLoop loop(slam_config, pinhole_on_base());
   const MotionPrior good = sideways_prior(speed_m_);
   FrameResult result;
   for (int i = 0; i < 5; ++i) result = loop.process(wall_.frame(4 * i, static_cast<std::uint32_t>(i)), &good);
@@ -210,7 +288,7 @@ INSTANTIATE_TEST_SUITE_P(Modes, SlamLoopWheels, ::testing::Values(Mode::kBaselin
 TEST(SlamLoopWheelsGeometric, FramesWithoutGeometryFollowTheWheels) {
   SlamConfig config;
   config.mode = Mode::kGeometric;
-  SlamLoop loop(config, pinhole());
+  SlamLoop loop(config, pinhole_on_base());
   WallSequence wall;
   const MotionPrior prior = sideways_prior(WallSequence::metres(4));
   FrameResult result = loop.process(wall.frame(0, 0), &prior);

@@ -151,7 +151,26 @@ struct SlamConfig {
   double wheel_gate_chi2 = 22.46;
   int wheel_gate_window_frames = 8;
   int wheel_strong_inliers = 40;
+  // Which source a disagreement is resolved for. One wheel slipping (spinning on a smooth floor)
+  // leaves a residual a planar base can make: about the vertical (and along the drive direction,
+  // which the corridor's registrations measure too poorly to test), with nothing across it, in
+  // height or in tilt beyond the vision noise. A residual of that shape from
+  // wheel_slip_yaw_deg on, for wheel_slip_min_frames in a row, is a slip: vision keeps the pose.
+  // Since the pose follows the wheels until then, the residual grows frame by frame (0.2-0.7 deg
+  // per frame on the simulated corridor loop's slips) and the registrations against a key-frame
+  // see all of it. Any other disagreement is a registration error (the corridor's: sliding along
+  // it, or tilting by 1-2 deg with 2-6 cm across or up), and the wheels keep the pose until
+  // strong vision has disagreed for wheel_override_min_frames in a row (the robot pushed or
+  // carried). Where vision errs in height and tilt while a wheel slips, the heading residual
+  // still turns one way frame after frame: wheel_slip_heading_frames in a row of that make a
+  // slip too. On the three simulated corridor loops (seeds 1-3), every slip-shaped run of 3
+  // frames with 0.8 deg, and every run of 8 turning one way, lay in one of the 8 slips (the
+  // registration errors' heading residuals change sign within 5 frames); the longest run of
+  // other strong disagreements was 8 frames.
+  double wheel_slip_yaw_deg = 0.8;
   int wheel_slip_min_frames = 3;
+  int wheel_slip_heading_frames = 8;
+  int wheel_override_min_frames = 15;
   // Fused mode (ALGORITHMS.md §5). Geometric keypoints are voxel centroids; their position noise
   // in the combined MSSE gets this multiple of the voxel leaf per frame on top of the depth noise.
   // Without it a geometric match counted as 2-4x more precise than an ORB match and pulled the
@@ -276,8 +295,14 @@ struct SlamConfig {
           "compared frames whose residuals from the wheel prior are summed for the window test");
     visit("wheel_strong_inliers", wheel_strong_inliers, 3, 10000, "",
           "a registration with this many inliers overrules disagreeing wheels; a weaker one gives way");
+    visit("wheel_slip_yaw_deg", wheel_slip_yaw_deg, 0.0, 45.0, "deg",
+          "heading residual from which vision otherwise agreeing with the wheels points to one slipping wheel");
     visit("wheel_slip_min_frames", wheel_slip_min_frames, 1, 1000, "",
-          "frames in a row of strong vision disagreeing with the wheels that count as a wheel-slip event");
+          "frames in a row of slip-shaped residuals that make a wheel-slip event (vision keeps the pose)");
+    visit("wheel_slip_heading_frames", wheel_slip_heading_frames, 1, 1000, "",
+          "frames in a row of a heading residual of wheel_slip_yaw_deg turning one way that make a wheel-slip event");
+    visit("wheel_override_min_frames", wheel_override_min_frames, 1, 100000, "",
+          "frames in a row of strong vision disagreeing otherwise with the wheels before vision keeps the pose");
     visit("fused_geometric_leaf_sigma", fused_geometric_leaf_sigma, 0.0, 10.0, "leaf",
           "fused mode: position noise of a geometric keypoint added per frame, in voxel leaves");
     visit("fused_icp_below_photometric_inliers", fused_icp_below_photometric_inliers, 0, 100000, "",

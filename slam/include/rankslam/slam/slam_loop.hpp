@@ -69,19 +69,33 @@ struct WheelCheck {
   /// summed over the last wheel_gate_window_frames compared frames.
   double frame_distance_sq = 0.0;
   double window_distance_sq = 0.0;
+  /// The registered motion less the wheels', in the base frame at the previous frame: along
+  /// the drive direction, across it, and about the vertical (what the wheels measure), then
+  /// height, roll and pitch (what a planar base cannot make).
+  double forward_residual_m = 0.0;
+  double lateral_residual_m = 0.0;
+  double yaw_residual_deg = 0.0;
+  double height_residual_m = 0.0;
+  double tilt_residual_deg = 0.0;
   /// Either distance beyond wheel_gate_chi2.
   bool disagree = false;
+  /// The residual is what one slipping wheel leaves: a heading residual of wheel_slip_yaw_deg or
+  /// more, and across the drive direction, in height and in tilt no more than the vision noise.
+  bool slip_shaped = false;
   /// They agreed: the pose is the covariance-weighted combination of the registration and the prior.
   bool fused = false;
-  /// Vision won: a registration with wheel_strong_inliers or more disagreed for
-  /// wheel_slip_min_frames in a row; its pose was kept.
+  /// Vision won: slip-shaped residuals for wheel_slip_min_frames in a row, a heading residual
+  /// turning one way for wheel_slip_heading_frames, or a strong registration
+  /// (wheel_strong_inliers) disagreeing otherwise, as the base can move, for
+  /// wheel_override_min_frames; and for as long as the disagreement then lasts.
   bool vision_trusted = false;
   /// Wheels won: a registration disagreed and was replaced by the prior (status kWheels).
   bool wheels_trusted = false;
-  /// Frames in a row that disagreed with vision trusted; wheel_slip_min_frames of them make
-  /// a slip event.
+  /// Frames in a row of the current kind of disagreement: slip-shaped, or strong and otherwise
+  /// disagreeing.
   int disagree_in_a_row = 0;
-  /// This frame started a wheel-slip event (counted in SlamLoop::wheel_slip_events()).
+  /// This frame started a disagreement that vision won (counted in
+  /// SlamLoop::wheel_slip_events()).
   bool slip_event = false;
 };
 
@@ -148,9 +162,12 @@ struct FrameResult {
 /// instead of extrapolating. An accepted registration is compared with the prior (Mahalanobis
 /// distance with the wheel covariance plus a fixed per-frame vision noise, for the frame alone
 /// and over a short window): when they agree the frame's motion is their covariance-weighted
-/// combination; a registration that disagrees gives way to the wheels (kWheels) unless it is
-/// strong and the disagreement has lasted wheel_slip_min_frames: then the wheels are taken to
-/// slip, vision keeps the pose, and a wheel-slip event is counted.
+/// combination; a registration that disagrees gives way to the wheels (kWheels). Vision keeps
+/// the pose, and a wheel-slip event is counted, when the residual has had the shape one slipping
+/// wheel leaves for wheel_slip_min_frames in a row (or its heading has turned one way for
+/// wheel_slip_heading_frames), or a strong registration has disagreed as the base can move for
+/// wheel_override_min_frames in a row (the robot moved without its wheels). A residual the base
+/// cannot make (across its drive direction, in height, in tilt) is always vision's error.
 ///
 /// Dark scenes: below `ir_switch_brightness` the features come from the pre-processed IR image.
 /// At the frame where the image kind changes, features of the old kind are extracted as well and
@@ -163,8 +180,8 @@ class SlamLoop {
   /// As process(frame), with the wheel motion since the previous frame; null: no prior.
   [[nodiscard]] FrameResult process(const hal::RgbdFrame& frame, const MotionPrior* prior);
 
-  /// Wheel-slip events so far: disagreements between strong registrations and the wheels that
-  /// lasted wheel_slip_min_frames frames.
+  /// Wheel-slip events so far: disagreements with the wheels that vision won (see the class
+  /// comment).
   [[nodiscard]] int wheel_slip_events() const { return wheel_slip_events_; }
 
   [[nodiscard]] const PointMap& map() const { return map_; }
@@ -254,6 +271,9 @@ class SlamLoop {
   /// which source the frame keeps; false when the wheels overrule the registration.
   [[nodiscard]] bool check_against_wheels(const MotionPrior& prior, const Eigen::Isometry3d& T_world_previous,
                                           int inliers, FrameResult& result);
+  /// The registered motion less the wheels', in base terms (the WheelCheck's *_residual fields).
+  void describe_in_base_frame(const Eigen::Isometry3d& registered, const Eigen::Isometry3d& wheels,
+                              WheelCheck& check) const;
   /// The tail every mode shares: a failed frame takes the prior, or extrapolates or holds the
   /// pose; a tracked one updates the motion model; then key-frame and map.
   void finish_frame(const hal::RgbdFrame& frame, bool have_depth, const Eigen::Isometry3d& T_world_previous,
@@ -261,6 +281,8 @@ class SlamLoop {
 
   SlamConfig config_;
   DepthCameraModel camera_;
+  /// The camera's mounting on the base, to compare registered and wheel motion in base terms.
+  Eigen::Isometry3d T_base_cam_ = Eigen::Isometry3d::Identity();
   OrbFrontend orb_;
   OrbFrontend infrared_orb_;
   MutualHammingMatcher matcher_;
@@ -319,7 +341,15 @@ class SlamLoop {
   std::vector<WheelResidual> wheel_window_;
   std::size_t wheel_window_next_ = 0;
   std::size_t wheel_window_size_ = 0;
+  int slip_shaped_in_a_row_ = 0;
+  /// Frames in a row whose heading residual reached wheel_slip_yaw_deg turning turning_sign_'s way.
+  int turning_in_a_row_ = 0;
+  int turning_sign_ = 0;
   int disagree_in_a_row_ = 0;
+  /// Vision won the current disagreement (see check_against_wheels).
+  bool vision_holds_ = false;
+  /// The heading residual's sign when vision won for a slip; 0 when it won otherwise.
+  int slip_sign_ = 0;
   int wheel_slip_events_ = 0;
   Eigen::Isometry3d T_world_last_keyframe_ = Eigen::Isometry3d::Identity();
   int keyframes_ = 0;
