@@ -488,8 +488,12 @@ bool SlamLoop::check_against_wheels(const MotionPrior& prior, const Eigen::Isome
     wheel_window_size_ = 0;
     wheel_window_next_ = 0;
   }
+  // The heading run excuses vision's height and tilt, not much across: registrations that turn
+  // about the scene instead of the camera (photometric on the corridor loop: 1-2 deg with 5-9 cm
+  // across, for a second) are no slip.
   const int turn = check.yaw_residual_deg > 0.0 ? 1 : -1;
-  if (std::abs(check.yaw_residual_deg) < config_.wheel_slip_yaw_deg) {
+  if (std::abs(check.yaw_residual_deg) < config_.wheel_slip_yaw_deg ||
+      std::abs(check.lateral_residual_m) > 2.0 * config_.wheel_vision_sigma_m) {
     turning_in_a_row_ = 0;
   } else {
     turning_in_a_row_ = turn == turning_sign_ ? turning_in_a_row_ + 1 : 1;

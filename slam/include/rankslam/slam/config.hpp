@@ -162,11 +162,12 @@ struct SlamConfig {
   // it, or tilting by 1-2 deg with 2-6 cm across or up), and the wheels keep the pose until
   // strong vision has disagreed for wheel_override_min_frames in a row (the robot pushed or
   // carried). Where vision errs in height and tilt while a wheel slips, the heading residual
-  // still turns one way frame after frame: wheel_slip_heading_frames in a row of that make a
-  // slip too. On the three simulated corridor loops (seeds 1-3), every slip-shaped run of 3
-  // frames with 0.8 deg, and every run of 8 turning one way, lay in one of the 8 slips (the
-  // registration errors' heading residuals change sign within 5 frames); the longest run of
-  // other strong disagreements was 8 frames.
+  // still turns one way frame after frame: wheel_slip_heading_frames in a row of that, with at
+  // most twice the vision noise across, make a slip too. On the three simulated corridor loops
+  // (seeds 1-3, fused and photometric), every slip-shaped run of 3 frames with 0.8 deg, and
+  // every such run of 8 turning one way, lay in one of the 8 slips (the fused registration
+  // errors' heading residuals change sign within 5 frames; photometric ones turned one way for
+  // longer, with 5-9 cm across); the longest run of other strong disagreements was 8 frames.
   double wheel_slip_yaw_deg = 0.8;
   int wheel_slip_min_frames = 3;
   int wheel_slip_heading_frames = 8;
