@@ -16,7 +16,7 @@ struct StatusCounts {
   int degraded = 0;
   int lost = 0;
   int disagreements = 0;   ///< registrations that disagreed with the wheels
-  int wheels_trusted = 0;  ///< of which the wheels overruled a weak registration
+  int wheels_trusted = 0;  ///< of which the wheels overruled the registration
   void add(const slam::FrameResult& result) {
     switch (result.status) {
       case slam::FrameStatus::kFirstFrame:

@@ -534,7 +534,7 @@ bool SlamLoop::check_against_wheels(const MotionPrior& prior, const Eigen::Isome
   // A registration error until shown otherwise (simulated corridor loop: single disagreeing
   // registrations were off by 35 mm median, the wheels by 0.04 mm).
   check.wheels_trusted = true;
-  check.disagree_in_a_row = std::max(slip_shaped_in_a_row_, disagree_in_a_row_);
+  check.disagree_in_a_row = std::max({slip_shaped_in_a_row_, turning_in_a_row_, disagree_in_a_row_});
   return false;
 }
 

@@ -295,7 +295,7 @@ struct SlamConfig {
     visit("wheel_gate_window_frames", wheel_gate_window_frames, 1, 100, "",
           "compared frames whose residuals from the wheel prior are summed for the window test");
     visit("wheel_strong_inliers", wheel_strong_inliers, 3, 10000, "",
-          "a registration with this many inliers overrules disagreeing wheels; a weaker one gives way");
+          "a registration with this many inliers can overrule wheels it disagrees with as no slip does");
     visit("wheel_slip_yaw_deg", wheel_slip_yaw_deg, 0.0, 45.0, "deg",
           "heading residual from which vision otherwise agreeing with the wheels points to one slipping wheel");
     visit("wheel_slip_min_frames", wheel_slip_min_frames, 1, 1000, "",
