@@ -500,7 +500,12 @@ bool SlamLoop::check_against_wheels(const MotionPrior& prior, const Eigen::Isome
     turning_sign_ = turn;
   }
   slip_shaped_in_a_row_ = check.slip_shaped ? slip_shaped_in_a_row_ + 1 : 0;
-  disagree_in_a_row_ = check.disagree && !check.slip_shaped && planar && strong ? disagree_in_a_row_ + 1 : 0;
+  // A base moved without its wheels moves away from where they put it frame after frame, so each
+  // frame of the run disagrees by itself; a window that still holds an earlier error does not
+  // count (simulated corridor loop, seed 4: vision sliding 7-8 cm along the corridor on every
+  // other frame kept the window disagreeing for 15 frames).
+  const bool frame_disagrees = check.frame_distance_sq > config_.wheel_gate_chi2;
+  disagree_in_a_row_ = frame_disagrees && !check.slip_shaped && planar && strong ? disagree_in_a_row_ + 1 : 0;
   const bool slip = slip_shaped_in_a_row_ >= config_.wheel_slip_min_frames ||
                     turning_in_a_row_ >= config_.wheel_slip_heading_frames;
   if (slip || disagree_in_a_row_ >= config_.wheel_override_min_frames) {
