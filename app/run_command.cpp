@@ -470,6 +470,7 @@ int run_live(const RunArgs& args) {
     sample.frame_sequence = frame.sequence;
     sample.registered = registered;
     sample.wheels_only = result.status == slam::FrameStatus::kWheels;
+    sample.wheel_slip = result.wheels.vision_trusted;
     if (result.status != slam::FrameStatus::kFirstFrame && result.features > 0) {
       sample.inlier_percent = static_cast<std::uint8_t>(std::min(100, 100 * result.inliers / result.features));
     }

@@ -110,6 +110,7 @@ void PoseBroadcaster::send_pose_cycle(std::int64_t now_ns) {
   quality.position_saturated = position_saturates(pose) || position_saturates(map_odom);
   quality.counter = pose_counter_;
   if (latest_) {
+    quality.wheel_slip = latest_->wheel_slip;
     quality.frame_counter = static_cast<std::uint8_t>(latest_->frame_sequence & 0xFFU);
     const std::int64_t age_ms = std::max<std::int64_t>(0, (now_ns - latest_->capture_ns) / 1'000'000);
     quality.age_ms = static_cast<std::uint16_t>(std::min<std::int64_t>(age_ms, std::numeric_limits<std::uint16_t>::max()));

@@ -134,6 +134,7 @@ hal::CanFrame encode_pose_quality(const PoseQuality& quality, std::int64_t stamp
   std::uint64_t word = 0;
   put_unsigned(word, 0, 2, static_cast<std::uint8_t>(quality.status));
   put_unsigned(word, 2, 1, quality.position_saturated ? 1U : 0U);
+  put_unsigned(word, 3, 1, quality.wheel_slip ? 1U : 0U);
   put_unsigned(word, 4, 4, quality.counter);
   put_unsigned(word, 8, 8, quality.frame_counter);
   put_unsigned(word, 16, 16, quality.age_ms);
@@ -185,6 +186,7 @@ std::optional<PoseQuality> decode_pose_quality(const hal::CanFrame& frame) {
   PoseQuality quality;
   quality.status = static_cast<PoseStatus>(get_unsigned(word, 0, 2));
   quality.position_saturated = get_unsigned(word, 2, 1) != 0;
+  quality.wheel_slip = get_unsigned(word, 3, 1) != 0;
   quality.counter = static_cast<std::uint8_t>(get_unsigned(word, 4, 4));
   quality.frame_counter = static_cast<std::uint8_t>(get_unsigned(word, 8, 8));
   quality.age_ms = static_cast<std::uint16_t>(get_unsigned(word, 16, 16));

@@ -91,6 +91,7 @@ TEST(PoseFrames, QualityAndHeartbeatRoundTrip) {
   PoseQuality quality;
   quality.status = PoseStatus::kDegraded;
   quality.position_saturated = true;
+  quality.wheel_slip = true;
   quality.counter = 9;
   quality.frame_counter = 201;
   quality.age_ms = 65000;
@@ -101,6 +102,7 @@ TEST(PoseFrames, QualityAndHeartbeatRoundTrip) {
   ASSERT_TRUE(q);
   EXPECT_EQ(q->status, PoseStatus::kDegraded);
   EXPECT_TRUE(q->position_saturated);
+  EXPECT_TRUE(q->wheel_slip);
   EXPECT_EQ(q->counter, 9);
   EXPECT_EQ(q->frame_counter, 201);
   EXPECT_EQ(q->age_ms, 65000);
@@ -475,6 +477,26 @@ TEST(PoseBroadcaster, WheelsOnlyFramesStayDegradedForAsLongAsTheyLast) {
   EXPECT_EQ(broadcaster.status(), PoseStatus::kLost);
 }
 
+TEST(PoseBroadcaster, WheelSlipFlagFollowsTheFrameThePoseComesFrom) {
+  RecordingBus bus;
+  ManualClock clock;
+  PoseOutputConfig config;
+  config.pose_rate_hz = 10.0;
+  PoseBroadcaster broadcaster(config, bus, clock);
+  PoseSample sample;
+  for (const bool slip : {false, true, true, false}) {
+    sample.wheel_slip = slip;
+    broadcaster.update(sample);
+    bus.sent.clear();
+    clock.now += 100'000'000;
+    (void)broadcaster.poll();
+    const auto q = qualities(bus.sent);
+    ASSERT_EQ(q.size(), 1U);
+    EXPECT_EQ(q[0].wheel_slip, slip);
+    EXPECT_EQ(q[0].status, PoseStatus::kTracking);
+  }
+}
+
 TEST(PoseBroadcaster, FullQueueIsCountedAndFlaggedInTheHeartbeat) {
   RecordingBus bus;
   ManualClock clock;
@@ -622,6 +644,7 @@ TEST(PoseFrames, DbcDescribesTheCodec) {
   PoseQuality quality;
   quality.status = PoseStatus::kLost;
   quality.position_saturated = true;
+  quality.wheel_slip = true;
   quality.counter = 5;
   quality.frame_counter = 77;
   quality.age_ms = 1234;
@@ -632,6 +655,7 @@ TEST(PoseFrames, DbcDescribesTheCodec) {
   const auto& m112 = dbc.at(kPoseQualityId);
   EXPECT_EQ(dbc_value(q, m112.at("Status")), 3.0);
   EXPECT_EQ(dbc_value(q, m112.at("PositionSaturated")), 1.0);
+  EXPECT_EQ(dbc_value(q, m112.at("WheelSlip")), 1.0);
   EXPECT_EQ(dbc_value(q, m112.at("CycleCounter")), 5.0);
   EXPECT_EQ(dbc_value(q, m112.at("FrameCounter")), 77.0);
   EXPECT_EQ(dbc_value(q, m112.at("PoseAge")), 1234.0);

@@ -92,7 +92,7 @@ struct PoseZRollPitch {
 };
 
 /// `PoseQuality` 0x112: byte 0 bits 0..1 status, bit 2 a position coordinate saturated at
-/// ±2097.151 m, bits 4..7 cycle counter; byte 1 low 8 bits of the camera frame number the pose
+/// ±2097.151 m, bit 3 wheel slip (vision overruled the wheels), bits 4..7 cycle counter; byte 1 low 8 bits of the camera frame number the pose
 /// comes from; bytes 2..3 pose age (capture to transmission), uint16 ms, saturating; bytes 4..5
 /// position standard deviation, uint16 0.1 mm, 0xFFFF = unknown; byte 6 yaw standard
 /// deviation, uint8 0.02°, 0xFF = unknown; byte 7 inlier ratio of the registration, uint8
@@ -100,6 +100,9 @@ struct PoseZRollPitch {
 struct PoseQuality {
   PoseStatus status = PoseStatus::kInitialising;
   bool position_saturated = false;
+  /// Vision overruled the wheels on the frame the pose comes from: a wheel slipped, or the base
+  /// moved without its wheels (bit 3).
+  bool wheel_slip = false;
   std::uint8_t counter = 0;
   std::uint8_t frame_counter = 0;
   std::uint16_t age_ms = 0;
