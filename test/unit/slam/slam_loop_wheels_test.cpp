@@ -193,6 +193,39 @@ TEST_P(SlamLoopWheels, ASlippingWheelGivesThePoseToVisionAndCountsOneEventPerSli
   EXPECT_LT(Eigen::AngleAxisd(result.T_world_cam.rotation()).angle(), 0.01);
 }
 
+// Where vision cannot be checked for planarity (here the wheels' prior tilts, so vision and
+// wheels differ in tilt from the first frame on), a heading residual that keeps turning one way
+// still declares the slip, after wheel_slip_heading_frames frames instead of wheel_slip_min_frames.
+TEST_P(SlamLoopWheels, AHeadingResidualTurningOneWayIsASlipWhateverTheTilt) {
+  SlamConfig slam_config = config();
+  slam_config.wheel_vision_sigma_m = 0.005;
+  slam_config.wheel_vision_sigma_deg = 0.3;
+  SlamLoop loop(slam_config, pinhole_on_base());
+  const MotionPrior good = sideways_prior(speed_m_);
+  MotionPrior slipping_and_tilting = sideways_prior(speed_m_, 0.6 * M_PI / 180.0);
+  Eigen::Isometry3d roll = Eigen::Isometry3d::Identity();
+  roll.linear() = Eigen::AngleAxisd(0.5 * M_PI / 180.0, Eigen::Vector3d::UnitX()).toRotationMatrix();
+  const Eigen::Isometry3d T_base_cam = camera_on_base();
+  slipping_and_tilting.T_previous_current = T_base_cam.inverse() * roll * T_base_cam * slipping_and_tilting.T_previous_current;
+  FrameResult result;
+  int frame = 0;
+  for (; frame < 8; ++frame) result = loop.process(wall_.frame(4 * frame, static_cast<std::uint32_t>(frame)), &good);
+  ASSERT_EQ(result.status, FrameStatus::kTracking);
+  int event_at = 0;
+  for (int k = 1; k <= 12 && event_at == 0; ++k, ++frame) {
+    result = loop.process(wall_.frame(4 * frame, static_cast<std::uint32_t>(frame)), &slipping_and_tilting);
+    ASSERT_TRUE(result.wheels.compared) << "frame " << frame << ": " << result.failure_reason;
+    EXPECT_FALSE(result.wheels.slip_shaped) << "frame " << frame << ": tilt " << result.wheels.tilt_residual_deg;
+    if (result.wheels.slip_event) event_at = k;
+  }
+  // The heading residual grows 0.6 deg a frame: 0.8 deg or more from the second frame, the
+  // eighth such frame is the ninth.
+  EXPECT_EQ(event_at, 1 + slam_config.wheel_slip_heading_frames);
+  EXPECT_EQ(loop.wheel_slip_events(), 1);
+  EXPECT_TRUE(result.wheels.vision_trusted);
+  EXPECT_LT(std::abs(result.wheels.lateral_residual_m), 2.0 * slam_config.wheel_vision_sigma_m);
+}
+
 // Strong vision that disagrees with the wheels as the base cannot move (across its drive
 // direction) is a registration error for as long as it lasts; a disagreement the base can make
 // (along it, a robot pushed with its wheels locked) goes to vision after wheel_override_min_frames.
