@@ -681,6 +681,12 @@ FrameResult SlamLoop::process(const hal::RgbdFrame& frame, const MotionPrior* pr
         reason = "registration disagrees with the wheels";
       }
     }
+    if (new_reference && target == &reference && result.wheels.fused &&
+        std::abs(result.wheels.yaw_residual_deg) >= config_.wheel_slip_yaw_deg / config_.wheel_slip_min_frames) {
+      // The pose took the wheels' heading, not vision's: as the next frames' reference it would
+      // hide a slip building up. The old reference still registers, so it stays.
+      new_reference = false;
+    }
     if (target != nullptr) {
       result.status = FrameStatus::kTracking;
     } else {
