@@ -477,7 +477,7 @@ bool SlamLoop::check_against_wheels(const MotionPrior& prior, const Eigen::Isome
     // lasts while that turns the same way at no less than the least rate that declares a slip
     // (wheel_slip_yaw_deg over wheel_slip_min_frames).
     const bool still_slipping =
-        slip_sign_ * check.yaw_residual_deg >= config_.wheel_slip_yaw_deg / config_.wheel_slip_min_frames;
+        slip_sign_ * check.yaw_residual_deg >= least_slip_turn_deg();
     if ((check.disagree || check.slip_shaped || still_slipping) && planar) {
       check.vision_trusted = true;
       check.disagree_in_a_row = ++disagree_in_a_row_;
@@ -485,8 +485,7 @@ bool SlamLoop::check_against_wheels(const MotionPrior& prior, const Eigen::Isome
     }
     vision_holds_ = false;
     // What the window holds was vision's to explain; the wheels are compared afresh.
-    wheel_window_size_ = 0;
-    wheel_window_next_ = 0;
+    clear_wheel_window();
   }
   // The heading run excuses vision's height and tilt, not much across: registrations that turn
   // about the scene instead of the camera (photometric on the corridor loop: 1-2 deg with 5-9 cm
@@ -682,7 +681,7 @@ FrameResult SlamLoop::process(const hal::RgbdFrame& frame, const MotionPrior* pr
       }
     }
     if (new_reference && target == &reference && result.wheels.fused &&
-        std::abs(result.wheels.yaw_residual_deg) >= config_.wheel_slip_yaw_deg / config_.wheel_slip_min_frames) {
+        std::abs(result.wheels.yaw_residual_deg) >= least_slip_turn_deg()) {
       // The pose took the wheels' heading, not vision's: as the next frames' reference it would
       // hide a slip building up. The old reference still registers, so it stays.
       new_reference = false;
@@ -711,8 +710,7 @@ void SlamLoop::finish_frame(const hal::RgbdFrame& frame, bool have_depth, const 
   accumulate_wheel_motion(prior);
   if (!result.wheels.compared) {
     // The window and the runs count consecutive compared frames only.
-    wheel_window_size_ = 0;
-    wheel_window_next_ = 0;
+    clear_wheel_window();
     disagree_in_a_row_ = 0;
     slip_shaped_in_a_row_ = 0;
     turning_in_a_row_ = 0;

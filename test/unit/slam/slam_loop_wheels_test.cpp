@@ -92,6 +92,13 @@ class SlamLoopWheels : public ::testing::TestWithParam<Mode> {
     config.mode = GetParam();
     return config;
   }
+  // Noise-free synthetic images register far better than a real scene.
+  SlamConfig synthetic_vision_config() const {
+    SlamConfig slam_config = config();
+    slam_config.wheel_vision_sigma_m = 0.005;
+    slam_config.wheel_vision_sigma_deg = 0.3;
+    return slam_config;
+  }
   WallSequence wall_;
   const double speed_m_ = WallSequence::metres(4);
 };
@@ -141,10 +148,7 @@ TEST_P(SlamLoopWheels, BlankFramesFollowTheWheelsForAsLongAsTheyLast) {
 }
 
 TEST_P(SlamLoopWheels, ASlippingWheelGivesThePoseToVisionAndCountsOneEventPerSlip) {
-  SlamConfig slam_config = config();
-  // Noise-free synthetic images register far better than a real scene.
-  slam_config.wheel_vision_sigma_m = 0.005;
-  slam_config.wheel_vision_sigma_deg = 0.3;
+  SlamConfig slam_config = synthetic_vision_config();
   SlamLoop loop(slam_config, pinhole_on_base());
   const MotionPrior good = sideways_prior(speed_m_);
   // One wheel over-counting: 0.6 deg of yaw per frame that the camera never turned.
@@ -197,9 +201,7 @@ TEST_P(SlamLoopWheels, ASlippingWheelGivesThePoseToVisionAndCountsOneEventPerSli
 // wheels differ in tilt from the first frame on), a heading residual that keeps turning one way
 // still declares the slip, after wheel_slip_heading_frames frames instead of wheel_slip_min_frames.
 TEST_P(SlamLoopWheels, AHeadingResidualTurningOneWayIsASlipWhateverTheTilt) {
-  SlamConfig slam_config = config();
-  slam_config.wheel_vision_sigma_m = 0.005;
-  slam_config.wheel_vision_sigma_deg = 0.3;
+  SlamConfig slam_config = synthetic_vision_config();
   SlamLoop loop(slam_config, pinhole_on_base());
   const MotionPrior good = sideways_prior(speed_m_);
   MotionPrior slipping_and_tilting = sideways_prior(speed_m_, 0.6 * M_PI / 180.0);
@@ -230,10 +232,8 @@ TEST_P(SlamLoopWheels, AHeadingResidualTurningOneWayIsASlipWhateverTheTilt) {
 // direction) is a registration error for as long as it lasts; a disagreement the base can make
 // (along it, a robot pushed with its wheels locked) goes to vision after wheel_override_min_frames.
 TEST_P(SlamLoopWheels, StrongVisionWinsOnlyADisagreementTheBaseCanMake) {
-  SlamConfig slam_config = config();
+  SlamConfig slam_config = synthetic_vision_config();
   slam_config.wheel_strong_inliers = slam_config.min_inliers;  // every accepted registration is strong
-  slam_config.wheel_vision_sigma_m = 0.005;
-  slam_config.wheel_vision_sigma_deg = 0.3;
   slam_config.wheel_override_min_frames = 3;
   // The wall sequence moves the camera along its x axis. Looking forward, that is across the
   // base's drive direction; looking to the left side (camera x = base x, y = −base z, z = base y),

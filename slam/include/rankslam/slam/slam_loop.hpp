@@ -271,6 +271,14 @@ class SlamLoop {
   /// which source the frame keeps; false when the wheels overrule the registration.
   [[nodiscard]] bool check_against_wheels(const MotionPrior& prior, const Eigen::Isometry3d& T_world_previous,
                                           int inliers, FrameResult& result);
+  /// The least heading a slip adds per frame: wheel_slip_yaw_deg reached in wheel_slip_min_frames.
+  [[nodiscard]] double least_slip_turn_deg() const {
+    return config_.wheel_slip_yaw_deg / config_.wheel_slip_min_frames;
+  }
+  void clear_wheel_window() {
+    wheel_window_size_ = 0;
+    wheel_window_next_ = 0;
+  }
   /// The registered motion less the wheels', in base terms (the WheelCheck's *_residual fields).
   void describe_in_base_frame(const Eigen::Isometry3d& registered, const Eigen::Isometry3d& wheels,
                               WheelCheck& check) const;
