@@ -89,6 +89,65 @@ RigidFitStatus solve(const Moments& m, Eigen::Isometry3d& T_t_s) {
   return RigidFitStatus::kOk;
 }
 
+/// The least-squares rigid motion of exactly three correspondences, in closed form (the SVD of
+/// solve() costs about half of a minimal-sample MSSE). Three centred points span a plane, so
+/// the cross-covariance has rank 2 and its null vectors are the two triangles' normals: the
+/// Umeyama rotation maps the source plane onto the target plane, and within it is the best 2D
+/// rotation — or, where a mirrored in-plane map fits better (a wrong match), that map with the
+/// normal turned over, which is what diag(1, 1, ±1) picks. Same motion as solve() to rounding
+/// (test/unit/robust, rigid_test). False for a degenerate triangle.
+bool solve_triangle(const std::array<Eigen::Vector3d, 3>& src, const std::array<Eigen::Vector3d, 3>& dst,
+                    Eigen::Isometry3d& T_t_s) {
+  const Eigen::Vector3d mean_src = (src[0] + src[1] + src[2]) / 3.0;
+  const Eigen::Vector3d mean_dst = (dst[0] + dst[1] + dst[2]) / 3.0;
+  const Eigen::Vector3d normal_src = (src[1] - src[0]).cross(src[2] - src[0]);
+  const Eigen::Vector3d normal_dst = (dst[1] - dst[0]).cross(dst[2] - dst[0]);
+  const double area_src = normal_src.norm();
+  const double area_dst = normal_dst.norm();
+  const double side_src = (src[1] - src[0]).norm();
+  const double side_dst = (dst[1] - dst[0]).norm();
+  if (!(area_src > 0.0) || !(area_dst > 0.0) || !(side_src > 0.0) || !(side_dst > 0.0)) return false;
+  // Orthonormal frames (in-plane axis, in-plane axis, normal) of both triangles.
+  const Eigen::Vector3d n_s = normal_src / area_src;
+  const Eigen::Vector3d n_t = normal_dst / area_dst;
+  const Eigen::Vector3d e1_s = (src[1] - src[0]) / side_src;
+  const Eigen::Vector3d e1_t = (dst[1] - dst[0]) / side_dst;
+  const Eigen::Vector3d e2_s = n_s.cross(e1_s);
+  const Eigen::Vector3d e2_t = n_t.cross(e1_t);
+  // 2D Procrustes: a = Σ x·x' + y·y', b = Σ x·y' − y·x' for the rotation; c, d likewise for
+  // the mirrored source (y → −y).
+  double a = 0.0, b = 0.0, c = 0.0, d = 0.0;
+  for (std::size_t k = 0; k < 3; ++k) {
+    const Eigen::Vector3d sc = src[k] - mean_src;
+    const Eigen::Vector3d dc = dst[k] - mean_dst;
+    const double x = sc.dot(e1_s), y = sc.dot(e2_s);
+    const double xt = dc.dot(e1_t), yt = dc.dot(e2_t);
+    a += x * xt + y * yt;
+    b += x * yt - y * xt;
+    c += x * xt - y * yt;
+    d += x * yt + y * xt;
+  }
+  const bool mirrored = c * c + d * d > a * a + b * b;
+  const double angle = mirrored ? std::atan2(d, c) : std::atan2(b, a);
+  const double cos_a = std::cos(angle);
+  const double sin_a = std::sin(angle);
+  Eigen::Matrix3d to;  // where the source frame's axes go
+  to.col(0) = cos_a * e1_t + sin_a * e2_t;
+  to.col(1) = -sin_a * e1_t + cos_a * e2_t;
+  to.col(2) = n_t;
+  Eigen::Matrix3d from;
+  from.col(0) = e1_s;
+  from.col(1) = mirrored ? Eigen::Vector3d(-e2_s) : e2_s;
+  from.col(2) = mirrored ? Eigen::Vector3d(-n_s) : n_s;
+  const Eigen::Matrix3d r = to * from.transpose();
+  const Eigen::Vector3d t = mean_dst - r * mean_src;
+  if (!r.allFinite() || !t.allFinite()) return false;
+  T_t_s.linear() = r;
+  T_t_s.translation() = t;
+  T_t_s.makeAffine();
+  return true;
+}
+
 template <class Get>
 RigidFitStatus fit_checked(int count, const Get& get, const RigidSolverConfig& config,
                            Eigen::Isometry3d& T_t_s) {
@@ -223,6 +282,11 @@ bool RigidModel::sample_degenerate(std::span<const int> sample) const {
 
 bool RigidModel::fit_sample(std::span<const int> sample, Params& T_t_s) const {
   if (sample.size() < 3) return false;
+  if (sample.size() == 3) {
+    const std::array<Eigen::Vector3d, 3> s{src(sample[0]), src(sample[1]), src(sample[2])};
+    const std::array<Eigen::Vector3d, 3> d{dst(sample[0]), dst(sample[1]), dst(sample[2])};
+    if (solve_triangle(s, d, T_t_s)) return true;
+  }
   // Unweighted: a minimal sample is fitted (almost) exactly, weights would change nothing.
   const auto get = [&](int k, Eigen::Vector3d& s, Eigen::Vector3d& d, double& w) {
     const int i = sample[static_cast<std::size_t>(k)];

@@ -1,6 +1,7 @@
 // Closed-form rigid solver (weighted Umeyama), its degeneracy checks, the rigid model, the
 // Kinect correspondence sigmas and the motion gate.
 
+#include <array>
 #include <cmath>
 #include <limits>
 #include <numbers>
@@ -157,6 +158,42 @@ TEST(FitRigid, DegenerateInputsReturnStatusAndIdentity) {
   negative[4] = -1.0;
   EXPECT_EQ(fit_rigid(spread, spread, negative, T), RigidFitStatus::kNonFinite);
   EXPECT_EQ(fit_rigid(spread, random_points(9, 1), {}, T), RigidFitStatus::kTooFewPoints);
+}
+
+// A minimal sample is fitted in closed form (the triangles' planes and a 2D rotation); it must
+// be the Umeyama fit of fit_rigid: matched triangles with noise, unrelated triangles (a wrong
+// match) and mirror images, which a rotation fits by turning the triangle over.
+TEST(RigidModel, MinimalSampleFitIsTheUmeyamaFit) {
+  std::mt19937_64 rng(7);
+  std::normal_distribution<double> noise(0.0, 0.01);
+  std::uniform_real_distribution<double> angle(-3.0, 3.0);
+  RigidModel model(3);
+  std::array<int, 3> fitted_by_kind{};
+  for (int trial = 0; trial < 3000; ++trial) {
+    const Eigen::Matrix3Xd src = random_points(3, 100 + static_cast<std::uint64_t>(trial));
+    Eigen::Matrix3Xd dst(3, 3);
+    const int kind = trial % 3;
+    if (kind == 2) {
+      dst = random_points(3, 900000 + static_cast<std::uint64_t>(trial));  // unrelated points
+    } else {
+      const Eigen::Isometry3d T = make_motion(angle(rng), Eigen::Vector3d(angle(rng), angle(rng), angle(rng)),
+                                              Eigen::Vector3d(angle(rng), angle(rng), angle(rng)));
+      dst = T * src;
+      if (kind == 1) dst.row(0) = -dst.row(0);  // a mirror image
+      for (int i = 0; i < 3; ++i) dst.col(i) += Eigen::Vector3d(noise(rng), noise(rng), noise(rng));
+    }
+    ASSERT_EQ(model.set_correspondences(src, dst), RobustStatus::kOk);
+    if (model.sample_degenerate(std::vector<int>{0, 1, 2})) continue;
+    Eigen::Isometry3d closed_form;
+    ASSERT_TRUE(model.fit_sample(std::vector<int>{0, 1, 2}, closed_form)) << "trial " << trial;
+    Eigen::Isometry3d umeyama;
+    ASSERT_EQ(fit_rigid(src, dst, {}, umeyama), RigidFitStatus::kOk) << "trial " << trial;
+    EXPECT_NEAR(closed_form.linear().determinant(), 1.0, 1e-12) << "trial " << trial;
+    EXPECT_TRUE(closed_form.matrix().isApprox(umeyama.matrix(), 1e-9))
+        << "trial " << trial << "\nclosed form\n" << closed_form.matrix() << "\nUmeyama\n" << umeyama.matrix();
+    ++fitted_by_kind[static_cast<std::size_t>(kind)];
+  }
+  for (const int fitted : fitted_by_kind) EXPECT_GT(fitted, 900);  // few triples were degenerate
 }
 
 TEST(CheckMinimalSample, RejectsCoincidentAndCollinearTriples) {
