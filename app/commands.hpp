@@ -20,6 +20,8 @@ struct ReplayArgs {
   std::uint32_t max_frames = 0;
   bool quiet = false;
   bool no_wheels = false;  ///< Ignore the recording's can.log: the vision-only run.
+  /// Decode the next frames while the loop runs (see replay::ReplayOptions::decode_ahead).
+  bool decode_ahead = false;
 };
 
 struct SimulateArgs {

@@ -27,6 +27,7 @@ int main(int argc, char** argv) {
       ->check(CLI::NonNegativeNumber);
   replay_cmd->add_option("--max-frames", replay.max_frames, "Replay at most this many frames (0 = all)");
   replay_cmd->add_flag("--quiet,-q", replay.quiet, "Print only the summary");
+  replay_cmd->add_flag("--decode-ahead", replay.decode_ahead, "Decode the next frames while the loop runs: a faster replay, but decoding then competes with the loop for the cores and its timings include that (without it, as on the robot, they do not)");
   replay_cmd->add_flag("--no-wheels", replay.no_wheels, "Ignore the recording's can.log: vision only (the wheel odometry is otherwise the motion prior and the fallback)");
 
   SimulateArgs simulate;

@@ -135,6 +135,7 @@ int run_replay(const ReplayArgs& args) {
   replay::ReplayOptions options;
   options.rate = args.rate;
   options.max_frames = args.max_frames;
+  options.decode_ahead = args.decode_ahead;
   replay::ReplayDepthCamera camera(recording, options);
   if (auto error = camera.open(); !error.empty()) {
     std::cerr << "error: " << error << "\n";
@@ -293,6 +294,7 @@ int run_replay(const ReplayArgs& args) {
   json.integer("failed_frames", failed_frames);
   json.integer("skipped_frames", counters.corrupt);
   json.integer("dropped_frames", counters.dropped);
+  json.boolean("decode_ahead", args.decode_ahead);
   write_status_and_wheels(json, status_counts, wheels ? &*wheels : nullptr, loop.wheel_slip_events(), wheels_off_reason);
   json.integer("keyframes", loop.keyframes());
   json.integer("loop_closures", loop.loop_closures());

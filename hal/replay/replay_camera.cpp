@@ -154,6 +154,8 @@ void ReplayDepthCamera::reader_loop() {
       if (options_.rate <= 0.0) {
         changed_.wait(lock, [&] {
           if (stop_) return true;
+          // Without decoding ahead, only while the consumer waits in read() with nothing ready.
+          if (!options_.decode_ahead && (held_slot_ != kPoolSlots || ready_count_ > 0)) return false;
           for (std::size_t i = 0; i < kPoolSlots; ++i) {
             if (slot_free_[i]) return true;
           }

@@ -5,6 +5,7 @@
 #include <gtest/gtest.h>
 
 #include <fstream>
+#include <thread>
 
 namespace rankslam::replay {
 namespace {
@@ -45,6 +46,30 @@ TEST(ReplayCamera, DeliversEveryFrameInOrderWithDecodedImages) {
   }
   EXPECT_EQ(camera.counters().corrupt, 0U);
   EXPECT_EQ(camera.counters().delivered, 12U);
+}
+
+// Without decoding ahead, frame k + 1 is read from disk only when the consumer asks for it
+// after frame k: deleting its images while the consumer holds frame k makes it missing, however
+// long the consumer takes. (With decoding ahead it would already be decoded by then.)
+TEST(ReplayCamera, WithoutDecodingAheadTheNextFrameIsReadOnlyWhenAskedFor) {
+  const fs::path root = test::write_small_recording("rankslam_replay_no_ahead", 6, true, true);
+  Recording recording;
+  ASSERT_EQ(open_recording(root, recording), "");
+  ReplayOptions options;
+  options.decode_ahead = false;
+  ReplayDepthCamera camera(recording, options);
+  ASSERT_EQ(camera.open(), "");
+  hal::RgbdFrame frame;
+  ASSERT_EQ(camera.read(frame, milliseconds(2000)), hal::ReadStatus::kOk);
+  ASSERT_EQ(frame.sequence, 0U);
+  std::this_thread::sleep_for(milliseconds(200));  // a slow consumer
+  fs::remove(root / recording.frames[1].rgb_file);
+  ASSERT_EQ(camera.read(frame, milliseconds(2000)), hal::ReadStatus::kOk);
+  EXPECT_EQ(frame.sequence, 2U);
+  EXPECT_EQ(camera.counters().corrupt, 1U);
+  const auto rest = replay_all(camera);
+  ASSERT_EQ(rest.size(), 3U);
+  EXPECT_EQ(rest.back().sequence, 5U);
 }
 
 TEST(ReplayCamera, CorruptAndMissingImagesAreSkippedCountedAndNamed) {

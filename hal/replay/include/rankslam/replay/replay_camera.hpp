@@ -24,6 +24,11 @@ struct ReplayOptions {
   std::uint32_t max_frames = 0;
   /// Decode the IR stream when the recording has one.
   bool load_ir = true;
+  /// With rate 0: decode the next frames while the consumer works on the current one (the
+  /// fastest replay). False: decode a frame only once the consumer has asked for it, so that
+  /// decoding never competes with the consumer for the cores, as on the robot, where the driver
+  /// delivers decoded images; the consumer's timings are then its own.
+  bool decode_ahead = true;
 };
 
 /// Counters a replay exposes for the report.
