@@ -3,6 +3,7 @@
 #include "rankslam/hal/calibration.hpp"
 #include "rankslam/geometry/frontend.hpp"
 #include "rankslam/hal/messages.hpp"
+#include "rankslam/parallel/companion.hpp"
 #include "rankslam/slam/camera.hpp"
 #include "rankslam/slam/config.hpp"
 #include "rankslam/slam/icp.hpp"
@@ -295,6 +296,9 @@ class SlamLoop {
   OrbFrontend infrared_orb_;
   MutualHammingMatcher matcher_;
   parallel::ThreadTeam team_;  // before the estimator and front-ends that use it
+  // Fused mode with 2+ threads: extracts the ORB features while the geometric front-end runs on
+  // the team. Declared after the front-ends, so stopped before they go.
+  parallel::Companion companion_;
   MotionEstimator estimator_;
   PointMap map_;
   InfraredFilter infrared_filter_;
