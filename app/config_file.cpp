@@ -100,4 +100,26 @@ std::string slam_config_json(slam::SlamConfig config) {
   return text.str();
 }
 
+std::string load_wheel_config(const std::filesystem::path& path, nav::WheelOdometryConfig& config) {
+  YAML::Node root;
+  try {
+    root = YAML::LoadFile(path.string());
+  } catch (const YAML::Exception& error) {
+    return path.string() + ": " + error.what();
+  }
+  const YAML::Node section = root["wheel_odometry"];
+  if (!section) return {};
+  if (!section.IsMap()) return path.string() + ": 'wheel_odometry' must be a map of parameters";
+  return load_section(path, section, "wheel_odometry", {}, config);
+}
+
+std::string describe_wheel_config(nav::WheelOdometryConfig config) {
+  std::ostringstream text;
+  config.visit_parameters([&](const char* name, auto& field, auto, auto, const char* unit, const char* doc) {
+    text << "wheel_odometry." << name << " = " << field << (unit[0] != '\0' ? " " : "") << unit << "  # " << doc
+         << "\n";
+  });
+  return text.str();
+}
+
 }  // namespace rankslam::app

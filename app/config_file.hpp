@@ -1,5 +1,6 @@
 #pragma once
 
+#include "rankslam/nav/wheel_odometry.hpp"
 #include "rankslam/slam/config.hpp"
 
 #include <filesystem>
@@ -16,5 +17,12 @@ namespace rankslam::app {
 
 /// Parameters as a JSON object body ("name": value, ...), for the report.
 [[nodiscard]] std::string slam_config_json(slam::SlamConfig config);
+
+/// Overrides `config` with the `wheel_odometry:` section of a YAML file (noise and limits of the
+/// wheel-encoder odometry), with the same rules as load_slam_config. Empty string on success.
+[[nodiscard]] std::string load_wheel_config(const std::filesystem::path& path, nav::WheelOdometryConfig& config);
+
+/// Every effective wheel odometry parameter, one "wheel_odometry.name = value unit  # doc" line each.
+[[nodiscard]] std::string describe_wheel_config(nav::WheelOdometryConfig config);
 
 }  // namespace rankslam::app

@@ -87,8 +87,13 @@ void write_percentiles(JsonWriter& json, std::string_view key, const Percentiles
 int run_replay(const ReplayArgs& args) {
   namespace fs = std::filesystem;
   slam::SlamConfig config;
+  nav::WheelOdometryConfig wheel_config;
   if (!args.config.empty()) {
     if (auto error = load_slam_config(args.config, config); !error.empty()) {
+      std::cerr << "error: " << error << "\n";
+      return kExitInput;
+    }
+    if (auto error = load_wheel_config(args.config, wheel_config); !error.empty()) {
       std::cerr << "error: " << error << "\n";
       return kExitInput;
     }
@@ -158,7 +163,6 @@ int run_replay(const ReplayArgs& args) {
   } else if (!recording.calibration.wheels) {
     wheels_off_reason = "the calibration has no wheels section";
   } else {
-    const nav::WheelOdometryConfig wheel_config;
     if (auto error = nav::validate(wheel_config, *recording.calibration.wheels); !error.empty()) {
       std::cerr << "error: " << recording.calibration.source << ": " << error << "\n";
       return kExitInput;
@@ -169,7 +173,8 @@ int run_replay(const ReplayArgs& args) {
     std::cout << "wheels: "
               << (wheels ? std::to_string(recording.can_frames.size()) + " CAN frames from can.log as the motion prior"
                          : "not used (" + wheels_off_reason + ")")
-              << "\n";
+              << "\n"
+              << (wheels ? describe_wheel_config(wheel_config) : std::string());
   }
   std::size_t next_can_frame = 0;
 

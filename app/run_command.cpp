@@ -271,6 +271,11 @@ int run_live(const RunArgs& args) {
     std::cerr << "error: " << error << "\n";
     return kExitInput;
   }
+  nav::WheelOdometryConfig wheel_config;
+  if (auto error = load_wheel_config(args.config, wheel_config); !error.empty()) {
+    std::cerr << "error: " << error << "\n";
+    return kExitInput;
+  }
   slam_config.mode = kDefaultMode;
   if (!args.mode.empty()) {
     const auto mode = parse_mode(args.mode);
@@ -376,7 +381,6 @@ int run_live(const RunArgs& args) {
   } else if (replay_camera != nullptr && !play_wheels) {
     wheels_off_reason = "the recording's wheel frames are not played";
   } else {
-    const nav::WheelOdometryConfig wheel_config;
     if (auto error = nav::validate(wheel_config, *calibration.wheels); !error.empty()) {
       std::cerr << "error: wheel odometry: " << error << "\n";
       return kExitInput;
@@ -386,7 +390,8 @@ int run_live(const RunArgs& args) {
   }
   std::cout << "wheels: " << (wheels.prior ? "CAN frames from " + robot.can_interface + " as the motion prior"
                                            : "not used (" + wheels_off_reason + ")")
-            << std::endl;
+            << "\n"
+            << (wheels.prior ? describe_wheel_config(wheel_config) : std::string()) << std::flush;
   std::thread sender([&] { output_thread(robot, wheel_can_id, mailbox, wheels, stop_output, output); });
 
   std::optional<WheelPlayer> player;

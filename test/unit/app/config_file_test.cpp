@@ -53,6 +53,37 @@ TEST(ConfigFile, ErrorsNameFileAndKey) {
   EXPECT_FALSE(load_slam_config(path, config).empty());
 }
 
+TEST(ConfigFile, ShippedDefaultFileMatchesTheBuiltInWheelOdometryDefaults) {
+  nav::WheelOdometryConfig config;
+  config.history_capacity = 7;  // the file must set it back
+  ASSERT_EQ(load_wheel_config(fs::path(RANKSLAM_SOURCE_DIR) / "deploy/config/default.yaml", config), "");
+  EXPECT_EQ(describe_wheel_config(config), describe_wheel_config(nav::WheelOdometryConfig{}));
+}
+
+TEST(ConfigFile, WheelOdometrySectionOverridesItsKeysAndNamesBadOnes) {
+  nav::WheelOdometryConfig config;
+  auto path = write_yaml("rankslam_cfg_wheels.yaml", "wheel_odometry:\n  wheel_variance_per_m: 0.0004\n");
+  ASSERT_EQ(load_wheel_config(path, config), "");
+  EXPECT_DOUBLE_EQ(config.wheel_variance_per_m, 0.0004);
+  EXPECT_EQ(config.history_capacity, nav::WheelOdometryConfig{}.history_capacity);
+
+  path = write_yaml("rankslam_cfg_wheels_range.yaml", "wheel_odometry:\n  max_frame_gap_s: 5\n");
+  std::string error = load_wheel_config(path, config);
+  EXPECT_NE(error.find("wheel_odometry.max_frame_gap_s"), std::string::npos) << error;
+  EXPECT_NE(error.find("rankslam_cfg_wheels_range.yaml"), std::string::npos) << error;
+
+  path = write_yaml("rankslam_cfg_wheels_unknown.yaml", "wheel_odometry:\n  wheel_radius_m: 0.1\n");
+  error = load_wheel_config(path, config);
+  EXPECT_NE(error.find("wheel_odometry.wheel_radius_m"), std::string::npos) << error;
+
+  // Every range the loader accepts is one the odometry accepts.
+  nav::WheelOdometryConfig extreme;
+  extreme.visit_parameters([](auto, auto& field, auto min, auto, auto, auto) { field = min; });
+  EXPECT_EQ(nav::validate(extreme, hal::WheelGeometry{}), "");
+  extreme.visit_parameters([](auto, auto& field, auto, auto max, auto, auto) { field = max; });
+  EXPECT_EQ(nav::validate(extreme, hal::WheelGeometry{}), "");
+}
+
 TEST(ConfigFile, IcpModeIsANamedChoice) {
   slam::SlamConfig config;
   auto path = write_yaml("rankslam_cfg_icp.yaml", "slam:\n  icp_mode: point_to_plane\n");

@@ -47,6 +47,19 @@ struct WheelOdometryConfig {
   double wheel_variance_per_m = 1e-4;
   /// Poses kept for relative_motion(); at 100 Hz the default holds 10.24 s. 2 .. 1'000'000.
   int history_capacity = 1024;
+
+  /// Calls visit(name, field, min, max, unit, doc) for every parameter (the ranges validate()
+  /// checks), for the `wheel_odometry:` section of the YAML configuration.
+  template <class V>
+  void visit_parameters(V&& visit) {
+    visit("max_wheel_speed_mps", max_wheel_speed_mps, 0.1, 20.0, "m/s",
+          "a wheel faster than this between two frames is a corrupted counter: the frame is rejected");
+    visit("max_frame_gap_s", max_frame_gap_s, 0.02, 1.0, "s",
+          "a larger stamp step starts a new integration baseline");
+    visit("wheel_variance_per_m", wheel_variance_per_m, 0.0, 1.0, "m^2/m",
+          "variance of one wheel's travel per metre rolled (1e-4: 1 cm after 1 m)");
+    visit("history_capacity", history_capacity, 2, 1'000'000, "", "odometry poses kept for the per-frame prior");
+  }
 };
 
 /// Range check naming the offending field of `config` or `wheels`; empty when both are valid.
