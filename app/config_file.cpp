@@ -46,15 +46,21 @@ std::string load_section(const std::filesystem::path& path, const YAML::Node& se
   return {};
 }
 
-}  // namespace
-
-std::string load_slam_config(const std::filesystem::path& path, slam::SlamConfig& config) {
-  YAML::Node root;
+// The whole file, or why it cannot be read (naming the file).
+std::string read_yaml(const std::filesystem::path& path, YAML::Node& root) {
   try {
     root = YAML::LoadFile(path.string());
   } catch (const YAML::Exception& error) {
     return path.string() + ": " + error.what();
   }
+  return {};
+}
+
+}  // namespace
+
+std::string load_slam_config(const std::filesystem::path& path, slam::SlamConfig& config) {
+  YAML::Node root;
+  if (auto error = read_yaml(path, root); !error.empty()) return error;
   if (const YAML::Node geometry = root["geometry"]) {
     if (!geometry.IsMap()) return path.string() + ": 'geometry' must be a map of parameters";
     if (auto error = load_section(path, geometry, "geometry", {}, config.geometry); !error.empty()) return error;
@@ -102,11 +108,7 @@ std::string slam_config_json(slam::SlamConfig config) {
 
 std::string load_wheel_config(const std::filesystem::path& path, nav::WheelOdometryConfig& config) {
   YAML::Node root;
-  try {
-    root = YAML::LoadFile(path.string());
-  } catch (const YAML::Exception& error) {
-    return path.string() + ": " + error.what();
-  }
+  if (auto error = read_yaml(path, root); !error.empty()) return error;
   const YAML::Node section = root["wheel_odometry"];
   if (!section) return {};
   if (!section.IsMap()) return path.string() + ": 'wheel_odometry' must be a map of parameters";
