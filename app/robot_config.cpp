@@ -9,8 +9,8 @@
 namespace rankslam::app {
 namespace {
 
-// Sections and keys this loader knows; `slam` and `geometry` belong to load_slam_config,
-// `wheel_odometry` to load_wheel_config.
+// Sections of the file: this loader's own (the keys of kKeys) and those the SLAM configuration
+// loaders read (`slam` and `geometry`: load_slam_config; `wheel_odometry`: load_wheel_config).
 const std::set<std::string> kSections = {"robot", "camera", "can", "output", "slam", "geometry", "wheel_odometry"};
 const std::map<std::string, std::set<std::string>> kKeys = {
     {"robot", {"name"}},
@@ -46,7 +46,7 @@ std::string load_robot_config(const std::filesystem::path& path, RobotConfig& co
   for (const auto& entry : root) {
     const auto name = entry.first.as<std::string>();
     if (!kSections.contains(name)) return file + "'" + name + "' is not a known section";
-    if (name == "slam" || name == "geometry" || name == "wheel_odometry") continue;
+    if (!kKeys.contains(name)) continue;  // another loader's section
     if (!entry.second.IsMap()) return file + "'" + name + "' must be a map";
     for (const auto& key : entry.second) {
       const auto key_name = key.first.as<std::string>();

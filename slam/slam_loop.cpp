@@ -176,7 +176,10 @@ SlamLoop::SlamLoop(const SlamConfig& config, const hal::Calibration& calibration
   infrared_.create(camera_.height(), camera_.width(), CV_8UC1);
   // OpenCV sets up its parallel framework (worker threads, thread-local storage) in the first
   // parallel call of the process and thread, which would otherwise be the first frame's cvtColor.
-  cv::cvtColor(cv::Mat(camera_.height(), camera_.width(), CV_8UC3, cv::Scalar::all(0)), gray_, cv::COLOR_BGR2GRAY);
+  const auto warm_up_opencv = [this] {
+    cv::cvtColor(cv::Mat(camera_.height(), camera_.width(), CV_8UC3, cv::Scalar::all(0)), gray_, cv::COLOR_BGR2GRAY);
+  };
+  warm_up_opencv();
   if (const std::string error = team_.start(config_.threads); !error.empty()) {
     throw std::invalid_argument("slam.threads: " + error);
   }
@@ -196,13 +199,7 @@ SlamLoop::SlamLoop(const SlamConfig& config, const hal::Calibration& calibration
       if (const std::string error = companion_.start(); !error.empty()) {
         throw std::invalid_argument("slam.threads: " + error);
       }
-      // OpenCV's per-thread set-up on the companion too (see above).
-      const auto warm_up = [this] {
-        cv::Mat gray;
-        cv::cvtColor(cv::Mat(camera_.height(), camera_.width(), CV_8UC3, cv::Scalar::all(0)), gray,
-                     cv::COLOR_BGR2GRAY);
-      };
-      companion_.launch(warm_up);
+      companion_.launch(warm_up_opencv);  // the companion is a thread of its own for OpenCV too
       companion_.wait();
     }
   }
@@ -602,8 +599,7 @@ FrameResult SlamLoop::process(const hal::RgbdFrame& frame, const MotionPrior* pr
   // (fr1_rpy_head features stage, README "Speed").
   if (fused) {
     companion_.launch(extract_photometric);
-    tracked.geometric.count = 0;
-    if (have_depth && geometric_.extract(frame.depth, tracked.geometric) != geometry::GeometryStatus::kOk) {
+    if (!have_depth || geometric_.extract(frame.depth, tracked.geometric) != geometry::GeometryStatus::kOk) {
       tracked.geometric.count = 0;
     }
     companion_.wait();
