@@ -20,22 +20,14 @@ inline void cpu_relax() {
 #endif
 }
 
-// Spins until done() or kSpin has passed; true if done() held. After the first kSpinAlone the
-// core is also offered, every few dozen polls, to any other thread ready to run on it (the SLAM
-// loop's companion thread extracting ORB features): a short gap between two loops is still
-// bridged by polling alone, a long one no longer holds the core.
+// Spins until done() or kSpin has passed; true if done() held.
 template <class Done>
 bool spin_until(Done&& done) {
-  constexpr auto kSpinAlone = std::chrono::microseconds(50);
-  const auto start = std::chrono::steady_clock::now();
+  const auto deadline = std::chrono::steady_clock::now() + ThreadTeam::kSpin;
   for (unsigned spins = 1;; ++spins) {
     if (done()) return true;
     // Reading the clock costs as much as a few dozen polls.
-    if (spins % 64 == 0) {
-      const auto spun = std::chrono::steady_clock::now() - start;
-      if (spun > ThreadTeam::kSpin) return false;
-      if (spun > kSpinAlone) std::this_thread::yield();
-    }
+    if (spins % 64 == 0 && std::chrono::steady_clock::now() > deadline) return false;
     cpu_relax();
   }
 }
