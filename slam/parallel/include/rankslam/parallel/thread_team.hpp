@@ -2,13 +2,10 @@
 
 // A fixed team of threads that shares the per-frame loops of the front-end (normals, saliency,
 // descriptors, matching, hypotheses) between the cores of the robot computer. The threads are
-// started at set-up; a loop allocates nothing and returns when every index is done, so callers
-// see a plain blocking call. A frame runs a few dozen loops close together: between them the
-// workers (and the caller waiting for them) spin for up to kSpin before sleeping, since waking a
-// sleeping thread costs tens of microseconds, a large share of a short loop.
+// started at set-up and sleep between loops; a loop allocates nothing and returns when every
+// index is done, so callers see a plain blocking call.
 
 #include <atomic>
-#include <chrono>
 #include <condition_variable>
 #include <cstdint>
 #include <mutex>
@@ -24,10 +21,6 @@ class ThreadTeam {
   /// Largest team: the per-thread scratch of the callers is sized by size(), and more threads
   /// than this buy nothing on the loops it serves (a few thousand items each).
   static constexpr int kMaxThreads = 8;
-  /// How long an idle thread of the team polls for the next loop (a worker) or for the last
-  /// worker to finish (the caller) before it sleeps: longer than the serial gaps between the
-  /// loops of one frame, far shorter than the time between frames.
-  static constexpr std::chrono::microseconds kSpin{300};
 
   /// A team of one: every loop runs on the calling thread.
   ThreadTeam() = default;
@@ -72,24 +65,20 @@ class ThreadTeam {
   void run(int count, int grain, Trampoline trampoline, void* context);
   void work(int thread, Trampoline trampoline, void* context);
   void worker_main(int thread);
-  /// Waits for a loop newer than `seen` (spinning, then asleep); false when the team stops.
-  bool await_loop(std::uint64_t& seen);
-  void await_workers();
   void stop();
 
   std::vector<std::thread> workers_;
   std::mutex mutex_;
   std::condition_variable wake_;
   std::condition_variable finished_;
-  // The loop being run; written before generation_ is raised (release), read by a worker after
-  // it sees the new generation (acquire).
+  // The loop being run; written under mutex_ before generation_ changes.
   Trampoline trampoline_ = nullptr;
   void* context_ = nullptr;
   int count_ = 0;
   int grain_ = 1;
-  std::atomic<std::uint64_t> generation_{0};
-  std::atomic<int> running_workers_{0};
-  std::atomic<bool> stopping_{false};
+  std::uint64_t generation_ = 0;
+  int running_workers_ = 0;
+  bool stopping_ = false;
   std::atomic<int> next_{0};
 };
 
