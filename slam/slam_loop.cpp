@@ -391,6 +391,24 @@ MotionEstimate SlamLoop::fused_estimate(const geometry::GeometricFeatures& targe
   return fused;
 }
 
+bool SlamLoop::snap_back(const MotionEstimate& estimate, const Eigen::Isometry3d& T_world_reference,
+                         Eigen::Isometry3d& T_world_current, std::string_view& reason) const {
+  const double overlap_inliers = config_.reference_min_overlap * reference_inliers_;
+  std::string_view why;
+  if (!estimate.ok) {
+    why = estimate.failure_reason;
+  } else if (estimate.inliers < config_.min_inliers || estimate.inliers < overlap_inliers) {
+    why = "too few inliers to resume tracking";
+  } else if (!estimate.T_target_source.matrix().allFinite()) {
+    why = "non-finite estimate";
+  } else {
+    T_world_current = T_world_reference * estimate.T_target_source;
+    return true;
+  }
+  if (reason.empty()) reason = why;
+  return false;
+}
+
 bool SlamLoop::accept(const MotionEstimate& estimate, const Eigen::Isometry3d& T_world_target,
                       const Eigen::Isometry3d& T_world_previous, const Eigen::Isometry3d& predicted_step,
                       Eigen::Isometry3d& T_world_current, std::string_view& reason) const {
@@ -643,14 +661,26 @@ FrameResult SlamLoop::process(const hal::RgbdFrame& frame, const MotionPrior* pr
     if (image == nullptr && !fused) reason = "no usable image";
     if (!have_depth) reason = "no usable depth";
     const TrackedFrame* target = nullptr;
+    // After a failed frame the prediction extrapolates the last motion, which may be the wrong
+    // estimate that started the failure (fr1_rpy_head: one bad step of 11 cm, then 16 frames of
+    // strong registrations against the reference rejected as far from the extrapolation, and the
+    // track resumed 0.6 m off from the extrapolated previous frame). The reference's pose was
+    // measured: a registration that sees it as well as tracked frames do sets the pose again.
+    const bool prediction_lost = failed_in_a_row_ > 0 && prior == nullptr;
+    snapped_back_ = false;
     if (reason.empty()) {
       if (reference.features.source == source) {
         const MotionEstimate estimate = register_frames(
             reference.features, reference.velocity, tracked.features, tracked.velocity, result,
             reference.T_world_cam.inverse() * T_world_predicted, fused ? &reference.geometric : nullptr,
             fused ? &tracked.geometric : nullptr);
-        if (accept(estimate, reference.T_world_cam, previous.T_world_cam, predicted_step, result.T_world_cam, reason)) {
+        const bool accepted = prediction_lost
+                                  ? snap_back(estimate, reference.T_world_cam, result.T_world_cam, reason)
+                                  : accept(estimate, reference.T_world_cam, previous.T_world_cam, predicted_step,
+                                           result.T_world_cam, reason);
+        if (accepted) {
           target = &reference;
+          snapped_back_ = prediction_lost;
           // Overlap relative to the inliers the reference had with the first frame registered
           // against it: that count is what full overlap looks like for this scene and image kind.
           // A fraction of the reference's features would depend on how matchable the features
@@ -735,7 +765,9 @@ void SlamLoop::finish_frame(const hal::RgbdFrame& frame, bool have_depth, const 
   }
   if (result.status == FrameStatus::kTracking) {
     result.T_world_cam = rigid(result.T_world_cam);
-    last_motion_ = rigid(T_world_previous.inverse() * result.T_world_cam);
+    // A frame that resumed tracking jumped from an extrapolated pose: that is no motion to go on
+    // with, so the next prediction holds the pose.
+    last_motion_ = snapped_back_ ? Eigen::Isometry3d::Identity() : rigid(T_world_previous.inverse() * result.T_world_cam);
     failed_in_a_row_ = 0;
   } else if (result.status == FrameStatus::kWheels && prior != nullptr) {
     // The wheels carry the pose; their motion is also the best constant-velocity model should

@@ -5,6 +5,7 @@
 
 #include <opencv2/imgproc.hpp>
 
+#include <array>
 #include <random>
 
 namespace rankslam::slam {
@@ -119,6 +120,37 @@ TEST_P(SlamLoopModes, AnImplausibleJumpFailsAndTrackingResumesOnTheReference) {
   EXPECT_EQ(result.status, FrameStatus::kTracking) << result.failure_reason;
   EXPECT_NEAR(result.T_world_cam.translation().x(), 6 * speed_m, 0.005);
   EXPECT_TRUE(result.T_world_cam.matrix().allFinite());
+}
+
+TEST_P(SlamLoopModes, AfterAFailureTrackingResumesOnTheReferenceNotOnTheExtrapolation) {
+  SlamConfig config;
+  config.mode = GetParam();
+  SlamLoop loop(config, pinhole());
+  WallSequence wall;
+  FrameResult result;
+  // Speeding up to 28 px (11 cm) per frame, then the camera stops dead.
+  constexpr std::array<int, 6> kShifts = {0, 20, 44, 72, 100, 128};
+  for (std::size_t i = 0; i < kShifts.size(); ++i) {
+    result = loop.process(wall.frame(kShifts[i], static_cast<std::uint32_t>(i)));
+    ASSERT_NE(result.status, FrameStatus::kFailed) << "frame " << i << ": " << result.failure_reason;
+  }
+  const int stop_px = kShifts.back();
+  const double stop_m = WallSequence::metres(stop_px);
+
+  // The first still frame is further from the constant-velocity prediction than the gate allows:
+  // it fails and its pose is extrapolated past the stop.
+  result = loop.process(wall.frame(stop_px, 6));
+  ASSERT_EQ(result.status, FrameStatus::kFailed);
+  EXPECT_GT(result.T_world_cam.translation().x(), stop_m + 0.1);
+
+  // The next ones see the reference as well as before: tracking resumes there, at the stop, and
+  // goes on from it (not from the extrapolation, which would keep every registration out of the
+  // gate, nor from the extrapolated previous frame).
+  for (int i = 7; i < 13; ++i) {
+    result = loop.process(wall.frame(stop_px, static_cast<std::uint32_t>(i)));
+    ASSERT_EQ(result.status, FrameStatus::kTracking) << "frame " << i << ": " << result.failure_reason;
+    EXPECT_NEAR(result.T_world_cam.translation().x(), stop_m, 0.005) << "frame " << i;
+  }
 }
 
 TEST_P(SlamLoopModes, MissingOrMalformedImagesFailWithAReason) {

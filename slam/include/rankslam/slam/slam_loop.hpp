@@ -245,6 +245,11 @@ class SlamLoop {
   [[nodiscard]] bool accept(const MotionEstimate& estimate, const Eigen::Isometry3d& T_world_target,
                             const Eigen::Isometry3d& T_world_previous, const Eigen::Isometry3d& predicted_step,
                             Eigen::Isometry3d& T_world_current, std::string_view& reason) const;
+  /// After failed frames, checks an estimate of T_reference_current on its own (the prediction
+  /// is an extrapolation): enough inliers to keep the reference. On success writes
+  /// T_world_current, otherwise `reason` (when still empty).
+  [[nodiscard]] bool snap_back(const MotionEstimate& estimate, const Eigen::Isometry3d& T_world_reference,
+                               Eigen::Isometry3d& T_world_current, std::string_view& reason) const;
   void refine_with_icp(const TrackedFrame& target, const TrackedFrame& current, FrameResult& result);
   void add_keyframe_to_map(const hal::RgbdFrame& frame, const Eigen::Isometry3d& T_world_cam, StoredKeyframe* stored);
   /// Stores the frame as a key-frame: graph node, sequential edge from the previous key-frame,
@@ -343,6 +348,8 @@ class SlamLoop {
   Eigen::Isometry3d last_motion_ = Eigen::Isometry3d::Identity();
   /// Failed frames since the last registered one.
   int failed_in_a_row_ = 0;
+  /// The current frame resumed tracking against the reference after failed frames.
+  bool snapped_back_ = false;
 
   /// Last compared frames' residuals from the prior (ring of wheel_gate_window_frames), for the
   /// window test: slip adds up frame after frame, noise only as its square root.
