@@ -231,6 +231,18 @@ const cv::Mat* SlamLoop::feature_image(const hal::RgbdFrame& frame, ImageSource 
   return infrared_valid_ ? &infrared_ : nullptr;
 }
 
+Eigen::Vector3f SlamLoop::rolling_shutter_corrected(const Eigen::Vector3f& point, double row,
+                                                    const Velocity& velocity) const {
+  const double readout_s = config_.rolling_shutter_readout_ms * 1e-3;
+  if (readout_s == 0.0) return point;
+  // Rolling shutter: row y was exposed (y/h − ½)·readout after the frame's mid-exposure time.
+  // Moving its point by the camera's velocity over that time (first order) expresses it in the
+  // mid-exposure camera frame.
+  const double dt_s = (row / static_cast<double>(camera_.height()) - 0.5) * readout_s;
+  const Eigen::Vector3d p = point.cast<double>();
+  return Eigen::Vector3f((p + dt_s * (velocity.head<3>().cross(p) + velocity.tail<3>())).cast<float>());
+}
+
 MotionEstimate SlamLoop::register_frames(const PhotometricFeatures& target, const Velocity& target_velocity,
                                          const PhotometricFeatures& current, const Velocity& current_velocity,
                                          FrameResult& result, const Eigen::Isometry3d& predicted,
@@ -238,17 +250,8 @@ MotionEstimate SlamLoop::register_frames(const PhotometricFeatures& target, cons
                                          const geometry::GeometricFeatures* current_geometric) {
   auto stage_start = Clock::now();
   matcher_.match(target.descriptors, current.descriptors, config_.max_hamming_distance, matches_);
-  const double readout_s = config_.rolling_shutter_readout_ms * 1e-3;
-  const auto height = static_cast<double>(camera_.height());
-  // Rolling shutter: row y was exposed (y/h − ½)·readout after the frame's mid-exposure time.
-  // Moving its point by the camera's velocity over that time (first order) expresses it in the
-  // mid-exposure camera frame.
   const auto corrected = [&](const PhotometricFeatures& features, std::uint32_t i, const Velocity& velocity) {
-    const Eigen::Vector3f& point = features.points_cam[i];
-    if (readout_s == 0.0) return point;
-    const double dt_s = (static_cast<double>(features.keypoints[i].pt.y) / height - 0.5) * readout_s;
-    const Eigen::Vector3d p = point.cast<double>();
-    return Eigen::Vector3f((p + dt_s * (velocity.head<3>().cross(p) + velocity.tail<3>())).cast<float>());
+    return rolling_shutter_corrected(features.points_cam[i], features.keypoints[i].pt.y, velocity);
   };
   source_points_.clear();
   target_points_.clear();
@@ -292,7 +295,7 @@ MotionEstimate SlamLoop::register_frames(const PhotometricFeatures& target, cons
   result.matches = static_cast<int>(source_points_.size());
   result.times.ms[kMatching] += elapsed_ms(stage_start);
   if (target_geometric != nullptr && current_geometric != nullptr) {
-    return fused_estimate(*target_geometric, *current_geometric, result, predicted);
+    return fused_estimate(*target_geometric, target_velocity, *current_geometric, current_velocity, result, predicted);
   }
 
   stage_start = Clock::now();
@@ -305,7 +308,9 @@ MotionEstimate SlamLoop::register_frames(const PhotometricFeatures& target, cons
 }
 
 MotionEstimate SlamLoop::fused_estimate(const geometry::GeometricFeatures& target_geometric,
-                                        const geometry::GeometricFeatures& current_geometric, FrameResult& result,
+                                        const Velocity& target_velocity,
+                                        const geometry::GeometricFeatures& current_geometric,
+                                        const Velocity& current_velocity, FrameResult& result,
                                         const Eigen::Isometry3d& predicted) {
   auto stage_start = Clock::now();
   const auto photometric_count = static_cast<int>(source_points_.size());
@@ -331,9 +336,16 @@ MotionEstimate SlamLoop::fused_estimate(const geometry::GeometricFeatures& targe
   const double current_leaf = current_geometric.voxel_leaf_m;
   const double quantisation_sq =
       quantisation * quantisation * (target_leaf * target_leaf + current_leaf * current_leaf);
+  // A keypoint's depth was read in the row it projects to: the same rolling-shutter correction.
+  const double fy = camera_.calibration().fy;
+  const double cy = camera_.calibration().cy;
+  const auto corrected = [&](const Eigen::Vector3d& point, const Velocity& velocity) {
+    const double row = point.z() > 0.0 ? fy * point.y() / point.z() + cy : cy;
+    return rolling_shutter_corrected(point.cast<float>(), row, velocity);
+  };
   for (int i = 0; i < geometric_count; ++i) {
-    source_points_.push_back(geometric_matches_.current.col(i).cast<float>());
-    target_points_.push_back(geometric_matches_.previous.col(i).cast<float>());
+    source_points_.push_back(corrected(geometric_matches_.current.col(i), current_velocity));
+    target_points_.push_back(corrected(geometric_matches_.previous.col(i), target_velocity));
     const double sigma = geometric_matches_.sigma_m[static_cast<std::size_t>(i)];
     correspondence_sigma_m_.push_back(std::sqrt(sigma * sigma + quantisation_sq));
   }
@@ -644,6 +656,7 @@ FrameResult SlamLoop::process(const hal::RgbdFrame& frame, const MotionPrior* pr
   }
 
   current_photometric_ = &tracked.features;
+  current_velocity_ = tracked.velocity;
   current_geometric_ = fused ? &tracked.geometric : nullptr;
   bool new_reference = false;
   if (previous_ < 0) {
@@ -823,6 +836,7 @@ void SlamLoop::store_keyframe(const hal::RgbdFrame& frame, bool have_depth, Fram
   StoredKeyframe& keyframe = keyframe_store_.slot(slot);
   keyframe.sequence = ++keyframe_sequence_;
   keyframe.T_world_cam = result.T_world_cam;
+  keyframe.velocity = current_velocity_;
   if (current_photometric_ != nullptr) {
     KeyframeStore::copy_features(*current_photometric_, keyframe.photometric);
   } else {
@@ -920,7 +934,7 @@ void SlamLoop::close_loops(int slot, FrameResult& result) {
     const Eigen::Isometry3d predicted = stored.T_world_cam.inverse() * current.T_world_cam;
     FrameResult scratch;
     const MotionEstimate estimate =
-        register_frames(stored.photometric, Velocity::Zero(), current.photometric, Velocity::Zero(), scratch, predicted,
+        register_frames(stored.photometric, stored.velocity, current.photometric, current.velocity, scratch, predicted,
                         with_geometry ? &stored.geometric : nullptr, with_geometry ? &current.geometric : nullptr);
     if (!estimate.ok || !estimate.T_target_source.matrix().allFinite()) continue;
     const int photometric_inliers = with_geometry ? scratch.photometric_inliers : scratch.inliers;
@@ -1076,6 +1090,7 @@ FrameResult SlamLoop::process_geometric(const hal::RgbdFrame& frame, const Motio
   result.features = features.count;
   current_photometric_ = nullptr;
   current_geometric_ = &features;
+  current_velocity_ = Velocity::Zero();
   result.times.ms[kFeatures] = elapsed_ms(stage_start);
 
   if (geometric_previous_ < 0) {

@@ -36,6 +36,9 @@ struct StoredKeyframe {
   Eigen::Isometry3d T_world_cam = Eigen::Isometry3d::Identity();
   /// Distance travelled by the camera (sum of key-frame to key-frame translations) when stored.
   double path_m = 0.0;
+  /// Camera velocity when seen (angular, then linear; camera frame): its features' rolling-shutter
+  /// correction in loop-closure registrations, as in tracking.
+  Eigen::Matrix<double, 6, 1> velocity = Eigen::Matrix<double, 6, 1>::Zero();
   PhotometricFeatures photometric;
   geometry::GeometricFeatures geometric;
   std::vector<KeyframePoint> points;

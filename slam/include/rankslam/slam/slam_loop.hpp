@@ -237,8 +237,13 @@ class SlamLoop {
   /// ALGORITHMS.md §5 over the photometric correspondences already in source_points_ /
   /// target_points_ and the geometric matches of the two frames.
   [[nodiscard]] MotionEstimate fused_estimate(const geometry::GeometricFeatures& target_geometric,
+                                              const Velocity& target_velocity,
                                               const geometry::GeometricFeatures& current_geometric,
-                                              FrameResult& result, const Eigen::Isometry3d& predicted);
+                                              const Velocity& current_velocity, FrameResult& result,
+                                              const Eigen::Isometry3d& predicted);
+  /// `point`, seen in image row `row`, moved to the frame's mid-exposure camera pose.
+  [[nodiscard]] Eigen::Vector3f rolling_shutter_corrected(const Eigen::Vector3f& point, double row,
+                                                          const Velocity& velocity) const;
   /// Checks an estimate of T_target_current; on success writes T_world_current, otherwise
   /// `reason` (when still empty).
   /// `predicted_step` is the motion expected from the previous frame (prior or constant velocity).
@@ -378,6 +383,7 @@ class SlamLoop {
   // stores.
   const PhotometricFeatures* current_photometric_ = nullptr;
   const geometry::GeometricFeatures* current_geometric_ = nullptr;
+  Velocity current_velocity_ = Velocity::Zero();
   KeyframeStore keyframe_store_;
   graph::PoseGraph graph_;
   graph::BackgroundOptimizer optimizer_;
