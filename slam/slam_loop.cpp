@@ -414,8 +414,19 @@ bool SlamLoop::snap_back(const MotionEstimate& estimate, const Eigen::Isometry3d
   } else if (!estimate.T_target_source.matrix().allFinite()) {
     why = "non-finite estimate";
   } else {
-    T_world_current = T_world_reference * estimate.T_target_source;
-    return true;
+    // Still a motion the camera can have made since its last measured pose: the prediction's
+    // gate, widened by one gate per frame since then. (Without it, a plain corridor's end wall
+    // registered turned by 179 deg after a single failed frame.)
+    const Eigen::Isometry3d candidate = T_world_reference * estimate.T_target_source;
+    const Eigen::Isometry3d since_tracked = T_world_last_tracked_.inverse() * candidate;
+    const double frames = failed_in_a_row_ + 1.0;
+    if (since_tracked.translation().norm() > frames * config_.max_deviation_translation_m ||
+        rotation_deg(since_tracked) > frames * config_.max_deviation_rotation_deg) {
+      why = "motion since the last tracked frame far from any the camera can have made";
+    } else {
+      T_world_current = candidate;
+      return true;
+    }
   }
   if (reason.empty()) reason = why;
   return false;
@@ -781,12 +792,14 @@ void SlamLoop::finish_frame(const hal::RgbdFrame& frame, bool have_depth, const 
     // A frame that resumed tracking jumped from an extrapolated pose: that is no motion to go on
     // with, so the next prediction holds the pose.
     last_motion_ = snapped_back_ ? Eigen::Isometry3d::Identity() : rigid(T_world_previous.inverse() * result.T_world_cam);
+    T_world_last_tracked_ = result.T_world_cam;
     failed_in_a_row_ = 0;
   } else if (result.status == FrameStatus::kWheels && prior != nullptr) {
     // The wheels carry the pose; their motion is also the best constant-velocity model should
     // the next frame come without a prior.
     last_motion_ = prior->T_previous_current;
     result.T_world_cam = rigid(T_world_previous * last_motion_);
+    T_world_last_tracked_ = result.T_world_cam;
     failed_in_a_row_ = 0;
   } else if (result.status == FrameStatus::kFailed) {
     // Constant-velocity extrapolation keeps the pose continuous through a short gap; a long gap

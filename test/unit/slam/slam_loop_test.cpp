@@ -143,10 +143,17 @@ TEST_P(SlamLoopModes, AfterAFailureTrackingResumesOnTheReferenceNotOnTheExtrapol
   ASSERT_EQ(result.status, FrameStatus::kFailed);
   EXPECT_GT(result.T_world_cam.translation().x(), stop_m + 0.1);
 
+  // The same view upside down registers against the reference as well, turned by 180 deg about
+  // the optical axis: no camera turns that far in two frames, so it does not set the pose.
+  hal::RgbdFrame upside_down = wall.frame(stop_px, 7);
+  cv::rotate(upside_down.rgb, upside_down.rgb, cv::ROTATE_180);
+  result = loop.process(upside_down);
+  EXPECT_EQ(result.status, FrameStatus::kFailed);
+
   // The next ones see the reference as well as before: tracking resumes there, at the stop, and
   // goes on from it (not from the extrapolation, which would keep every registration out of the
   // gate, nor from the extrapolated previous frame).
-  for (int i = 7; i < 13; ++i) {
+  for (int i = 8; i < 14; ++i) {
     result = loop.process(wall.frame(stop_px, static_cast<std::uint32_t>(i)));
     ASSERT_EQ(result.status, FrameStatus::kTracking) << "frame " << i << ": " << result.failure_reason;
     EXPECT_NEAR(result.T_world_cam.translation().x(), stop_m, 0.005) << "frame " << i;

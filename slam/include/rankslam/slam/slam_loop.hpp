@@ -355,6 +355,8 @@ class SlamLoop {
   int failed_in_a_row_ = 0;
   /// The current frame resumed tracking against the reference after failed frames.
   bool snapped_back_ = false;
+  /// Pose of the last registered frame.
+  Eigen::Isometry3d T_world_last_tracked_ = Eigen::Isometry3d::Identity();
 
   /// Last compared frames' residuals from the prior (ring of wheel_gate_window_frames), for the
   /// window test: slip adds up frame after frame, noise only as its square root.
