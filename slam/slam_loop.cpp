@@ -403,56 +403,41 @@ MotionEstimate SlamLoop::fused_estimate(const geometry::GeometricFeatures& targe
   return fused;
 }
 
-bool SlamLoop::snap_back(const MotionEstimate& estimate, const Eigen::Isometry3d& T_world_reference,
-                         Eigen::Isometry3d& T_world_current, std::string_view& reason) const {
-  const double overlap_inliers = config_.reference_min_overlap * reference_inliers_;
-  std::string_view why;
-  if (!estimate.ok) {
-    why = estimate.failure_reason;
-  } else if (estimate.inliers < config_.min_inliers || estimate.inliers < overlap_inliers) {
-    why = "too few inliers to resume tracking";
-  } else if (!estimate.T_target_source.matrix().allFinite()) {
-    why = "non-finite estimate";
-  } else {
-    // Still a motion the camera can have made since its last measured pose: the prediction's
-    // gate, widened by one gate per frame since then. (Without it, a plain corridor's end wall
-    // registered turned by 179 deg after a single failed frame.)
-    const Eigen::Isometry3d candidate = T_world_reference * estimate.T_target_source;
-    const Eigen::Isometry3d since_tracked = T_world_last_tracked_.inverse() * candidate;
-    const double frames = failed_in_a_row_ + 1.0;
-    if (since_tracked.translation().norm() > frames * config_.max_deviation_translation_m ||
-        rotation_deg(since_tracked) > frames * config_.max_deviation_rotation_deg) {
-      why = "motion since the last tracked frame far from any the camera can have made";
-    } else {
-      T_world_current = candidate;
-      return true;
-    }
-  }
-  if (reason.empty()) reason = why;
-  return false;
-}
-
 bool SlamLoop::accept(const MotionEstimate& estimate, const Eigen::Isometry3d& T_world_target,
                       const Eigen::Isometry3d& T_world_previous, const Eigen::Isometry3d& predicted_step,
-                      Eigen::Isometry3d& T_world_current, std::string_view& reason) const {
+                      Eigen::Isometry3d& T_world_current, std::string_view& reason, bool resuming) const {
   std::string_view why;
   if (!estimate.ok) {
     why = estimate.failure_reason;
   } else if (estimate.inliers < config_.min_inliers) {
     why = "too few inliers";
+  } else if (resuming && estimate.inliers < config_.reference_min_overlap * reference_inliers_) {
+    why = "too few inliers to resume tracking";
   } else if (!estimate.T_target_source.matrix().allFinite()) {
     why = "non-finite estimate";
   } else {
     const Eigen::Isometry3d T_world_candidate = T_world_target * estimate.T_target_source;
     const Eigen::Isometry3d step = T_world_previous.inverse() * T_world_candidate;
     const Eigen::Isometry3d deviation = predicted_step.inverse() * step;
-    if (step.translation().norm() > config_.max_step_translation_m ||
-        rotation_deg(step) > config_.max_step_rotation_deg) {
+    // Resuming, the prediction is an extrapolation; the pose must still be one the camera can
+    // have reached since its last measured pose: the prediction's gate, widened by one gate per
+    // frame since then. (Without it, a plain corridor's end wall registered turned by 179 deg
+    // after a single failed frame.)
+    const Eigen::Isometry3d since_tracked = T_world_last_tracked_.inverse() * T_world_candidate;
+    const double frames_since_tracked = failed_in_a_row_ + 1.0;
+    if (resuming) {
+      if (since_tracked.translation().norm() > frames_since_tracked * config_.max_deviation_translation_m ||
+          rotation_deg(since_tracked) > frames_since_tracked * config_.max_deviation_rotation_deg) {
+        why = "motion since the last tracked frame far from any the camera can have made";
+      }
+    } else if (step.translation().norm() > config_.max_step_translation_m ||
+               rotation_deg(step) > config_.max_step_rotation_deg) {
       why = "implausible frame-to-frame motion";
     } else if (deviation.translation().norm() > config_.max_deviation_translation_m ||
                rotation_deg(deviation) > config_.max_deviation_rotation_deg) {
       why = "motion far from the prediction";
-    } else {
+    }
+    if (why.empty()) {
       T_world_current = T_world_candidate;
       return true;
     }
@@ -690,21 +675,18 @@ FrameResult SlamLoop::process(const hal::RgbdFrame& frame, const MotionPrior* pr
     // strong registrations against the reference rejected as far from the extrapolation, and the
     // track resumed 0.6 m off from the extrapolated previous frame). The reference's pose was
     // measured: a registration that sees it as well as tracked frames do sets the pose again.
-    const bool prediction_lost = failed_in_a_row_ > 0 && prior == nullptr;
-    snapped_back_ = false;
+    const bool resuming = failed_in_a_row_ > 0 && prior == nullptr;
+    resumed_tracking_ = false;
     if (reason.empty()) {
       if (reference.features.source == source) {
         const MotionEstimate estimate = register_frames(
             reference.features, reference.velocity, tracked.features, tracked.velocity, result,
             reference.T_world_cam.inverse() * T_world_predicted, fused ? &reference.geometric : nullptr,
             fused ? &tracked.geometric : nullptr);
-        const bool accepted = prediction_lost
-                                  ? snap_back(estimate, reference.T_world_cam, result.T_world_cam, reason)
-                                  : accept(estimate, reference.T_world_cam, previous.T_world_cam, predicted_step,
-                                           result.T_world_cam, reason);
-        if (accepted) {
+        if (accept(estimate, reference.T_world_cam, previous.T_world_cam, predicted_step, result.T_world_cam, reason,
+                   resuming)) {
           target = &reference;
-          snapped_back_ = prediction_lost;
+          resumed_tracking_ = resuming;
           // Overlap relative to the inliers the reference had with the first frame registered
           // against it: that count is what full overlap looks like for this scene and image kind.
           // A fraction of the reference's features would depend on how matchable the features
@@ -791,7 +773,7 @@ void SlamLoop::finish_frame(const hal::RgbdFrame& frame, bool have_depth, const 
     result.T_world_cam = rigid(result.T_world_cam);
     // A frame that resumed tracking jumped from an extrapolated pose: that is no motion to go on
     // with, so the next prediction holds the pose.
-    last_motion_ = snapped_back_ ? Eigen::Isometry3d::Identity() : rigid(T_world_previous.inverse() * result.T_world_cam);
+    last_motion_ = resumed_tracking_ ? Eigen::Isometry3d::Identity() : rigid(T_world_previous.inverse() * result.T_world_cam);
     T_world_last_tracked_ = result.T_world_cam;
     failed_in_a_row_ = 0;
   } else if (result.status == FrameStatus::kWheels && prior != nullptr) {

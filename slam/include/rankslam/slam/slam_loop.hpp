@@ -247,14 +247,13 @@ class SlamLoop {
   /// Checks an estimate of T_target_current; on success writes T_world_current, otherwise
   /// `reason` (when still empty).
   /// `predicted_step` is the motion expected from the previous frame (prior or constant velocity).
+  /// `resuming`: after failed frames, against the reference, whose pose was measured; the
+  /// prediction is then an extrapolation and not checked against, but the estimate needs the
+  /// inliers that keep a reference.
   [[nodiscard]] bool accept(const MotionEstimate& estimate, const Eigen::Isometry3d& T_world_target,
                             const Eigen::Isometry3d& T_world_previous, const Eigen::Isometry3d& predicted_step,
-                            Eigen::Isometry3d& T_world_current, std::string_view& reason) const;
-  /// After failed frames, checks an estimate of T_reference_current on its own (the prediction
-  /// is an extrapolation): enough inliers to keep the reference. On success writes
-  /// T_world_current, otherwise `reason` (when still empty).
-  [[nodiscard]] bool snap_back(const MotionEstimate& estimate, const Eigen::Isometry3d& T_world_reference,
-                               Eigen::Isometry3d& T_world_current, std::string_view& reason) const;
+                            Eigen::Isometry3d& T_world_current, std::string_view& reason,
+                            bool resuming = false) const;
   void refine_with_icp(const TrackedFrame& target, const TrackedFrame& current, FrameResult& result);
   void add_keyframe_to_map(const hal::RgbdFrame& frame, const Eigen::Isometry3d& T_world_cam, StoredKeyframe* stored);
   /// Stores the frame as a key-frame: graph node, sequential edge from the previous key-frame,
@@ -354,7 +353,7 @@ class SlamLoop {
   /// Failed frames since the last registered one.
   int failed_in_a_row_ = 0;
   /// The current frame resumed tracking against the reference after failed frames.
-  bool snapped_back_ = false;
+  bool resumed_tracking_ = false;
   /// Pose of the last registered frame.
   Eigen::Isometry3d T_world_last_tracked_ = Eigen::Isometry3d::Identity();
 
