@@ -171,6 +171,20 @@ double report_number(const std::string& report, const std::string& key) {
   return end == start ? std::nan("") : value;
 }
 
+TEST(Cli, DefaultFusedReplayOfFr1RpyHeadStaysWithinTwoAndAHalfCentimetres) {
+  const fs::path recording = shared_data() / "tum/fr1_rpy_head";
+  if (!fs::exists(recording)) GTEST_SKIP() << "shared data not found at " << shared_data() << ": accuracy test skipped";
+  const fs::path out = fresh_dir("rankslam_cli_fused_accuracy");
+  const auto result = run("replay " + recording.string() + " --out " + out.string() + " --quiet");
+  ASSERT_EQ(result.exit_code, 0) << result.output;
+  const std::string report = slurp(out / "report.json");
+  EXPECT_NE(report.find("\"mode\": \"fused\""), std::string::npos) << report;
+  const double ate = report_number(report, "ate_rmse_m");
+  std::printf("fr1_rpy_head, fused (default settings): ATE %.4f m, %g loop closures\n", ate,
+              report_number(report, "loop_closures"));
+  EXPECT_LE(ate, 0.025);
+}
+
 TEST(Cli, GeometricModeTracksPlainZigzagPanelsWherePhotometricFails) {
   const fs::path recording = fresh_dir("rankslam_cli_zigzag");
   const auto simulated = run("simulate zigzag-plain --out " + recording.string() + " --frames 150");
