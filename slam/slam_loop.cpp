@@ -249,7 +249,22 @@ MotionEstimate SlamLoop::register_frames(const PhotometricFeatures& target, cons
                                          const geometry::GeometricFeatures* target_geometric,
                                          const geometry::GeometricFeatures* current_geometric) {
   auto stage_start = Clock::now();
-  matcher_.match(target.descriptors, current.descriptors, config_.max_hamming_distance, matches_);
+  const auto match_photometric = [&] {
+    matcher_.match(target.descriptors, current.descriptors, config_.max_hamming_distance, matches_);
+  };
+  // Fused: the ORB matches on the companion thread while the SHOT matches take the team.
+  const bool fused = target_geometric != nullptr && current_geometric != nullptr;
+  int geometric_count = 0;
+  if (fused) {
+    companion_.launch(match_photometric);
+    if (geometric_.correspondences(*target_geometric, *current_geometric, geometric_matches_) ==
+        geometry::GeometryStatus::kOk) {
+      geometric_count = geometric_matches_.count;
+    }
+    companion_.wait();
+  } else {
+    match_photometric();
+  }
   const auto corrected = [&](const PhotometricFeatures& features, std::uint32_t i, const Velocity& velocity) {
     return rolling_shutter_corrected(features.points_cam[i], features.keypoints[i].pt.y, velocity);
   };
@@ -294,8 +309,9 @@ MotionEstimate SlamLoop::register_frames(const PhotometricFeatures& target, cons
   }
   result.matches = static_cast<int>(source_points_.size());
   result.times.ms[kMatching] += elapsed_ms(stage_start);
-  if (target_geometric != nullptr && current_geometric != nullptr) {
-    return fused_estimate(*target_geometric, target_velocity, *current_geometric, current_velocity, result, predicted);
+  if (fused) {
+    return fused_estimate(*target_geometric, target_velocity, *current_geometric, current_velocity, geometric_count,
+                          result, predicted);
   }
 
   stage_start = Clock::now();
@@ -310,18 +326,10 @@ MotionEstimate SlamLoop::register_frames(const PhotometricFeatures& target, cons
 MotionEstimate SlamLoop::fused_estimate(const geometry::GeometricFeatures& target_geometric,
                                         const Velocity& target_velocity,
                                         const geometry::GeometricFeatures& current_geometric,
-                                        const Velocity& current_velocity, FrameResult& result,
-                                        const Eigen::Isometry3d& predicted) {
+                                        const Velocity& current_velocity, int geometric_count,
+                                        FrameResult& result, const Eigen::Isometry3d& predicted) {
   auto stage_start = Clock::now();
   const auto photometric_count = static_cast<int>(source_points_.size());
-  int geometric_count = 0;
-  if (geometric_.correspondences(target_geometric, current_geometric, geometric_matches_) ==
-      geometry::GeometryStatus::kOk) {
-    geometric_count = geometric_matches_.count;
-  }
-  result.times.ms[kMatching] += elapsed_ms(stage_start);
-
-  stage_start = Clock::now();
   // 1. Each kind alone: its inlier ratio says how well it fits this scene.
   constexpr int kMinimalSample = 3;
   MotionEstimate photometric;

@@ -235,12 +235,13 @@ class SlamLoop {
                                                const geometry::GeometricFeatures* target_geometric = nullptr,
                                                const geometry::GeometricFeatures* current_geometric = nullptr);
   /// ALGORITHMS.md §5 over the photometric correspondences already in source_points_ /
-  /// target_points_ and the geometric matches of the two frames.
+  /// target_points_ and the `geometric_count` geometric matches of the two frames already in
+  /// geometric_matches_.
   [[nodiscard]] MotionEstimate fused_estimate(const geometry::GeometricFeatures& target_geometric,
                                               const Velocity& target_velocity,
                                               const geometry::GeometricFeatures& current_geometric,
-                                              const Velocity& current_velocity, FrameResult& result,
-                                              const Eigen::Isometry3d& predicted);
+                                              const Velocity& current_velocity, int geometric_count,
+                                              FrameResult& result, const Eigen::Isometry3d& predicted);
   /// `point`, seen in image row `row`, moved to the frame's mid-exposure camera pose.
   [[nodiscard]] Eigen::Vector3f rolling_shutter_corrected(const Eigen::Vector3f& point, double row,
                                                           const Velocity& velocity) const;
