@@ -425,25 +425,27 @@ bool SlamLoop::accept(const MotionEstimate& estimate, const Eigen::Isometry3d& T
     why = "non-finite estimate";
   } else {
     const Eigen::Isometry3d T_world_candidate = T_world_target * estimate.T_target_source;
-    const Eigen::Isometry3d step = T_world_previous.inverse() * T_world_candidate;
-    const Eigen::Isometry3d deviation = predicted_step.inverse() * step;
-    // Resuming, the prediction is an extrapolation; the pose must still be one the camera can
-    // have reached since its last measured pose: the prediction's gate, widened by one gate per
-    // frame since then. (Without it, a plain corridor's end wall registered turned by 179 deg
-    // after a single failed frame.)
-    const Eigen::Isometry3d since_tracked = T_world_last_tracked_.inverse() * T_world_candidate;
-    const double frames_since_tracked = failed_in_a_row_ + 1.0;
     if (resuming) {
+      // The prediction is an extrapolation; the pose must still be one the camera can have
+      // reached since its last measured pose: the prediction's gate, widened by one gate per
+      // frame since then. (Without it, a plain corridor's end wall registered turned by 179 deg
+      // after a single failed frame.)
+      const Eigen::Isometry3d since_tracked = T_world_last_tracked_.inverse() * T_world_candidate;
+      const double frames_since_tracked = failed_in_a_row_ + 1.0;
       if (since_tracked.translation().norm() > frames_since_tracked * config_.max_deviation_translation_m ||
           rotation_deg(since_tracked) > frames_since_tracked * config_.max_deviation_rotation_deg) {
         why = "motion since the last tracked frame far from any the camera can have made";
       }
-    } else if (step.translation().norm() > config_.max_step_translation_m ||
-               rotation_deg(step) > config_.max_step_rotation_deg) {
-      why = "implausible frame-to-frame motion";
-    } else if (deviation.translation().norm() > config_.max_deviation_translation_m ||
-               rotation_deg(deviation) > config_.max_deviation_rotation_deg) {
-      why = "motion far from the prediction";
+    } else {
+      const Eigen::Isometry3d step = T_world_previous.inverse() * T_world_candidate;
+      const Eigen::Isometry3d deviation = predicted_step.inverse() * step;
+      if (step.translation().norm() > config_.max_step_translation_m ||
+          rotation_deg(step) > config_.max_step_rotation_deg) {
+        why = "implausible frame-to-frame motion";
+      } else if (deviation.translation().norm() > config_.max_deviation_translation_m ||
+                 rotation_deg(deviation) > config_.max_deviation_rotation_deg) {
+        why = "motion far from the prediction";
+      }
     }
     if (why.empty()) {
       T_world_current = T_world_candidate;
