@@ -3,7 +3,9 @@
 
 #include <gtest/gtest.h>
 
+#include <algorithm>
 #include <filesystem>
+#include <vector>
 
 namespace rankslam::openni2 {
 namespace {
@@ -31,7 +33,9 @@ TEST(OpenNI2Camera, DummyDeviceStreamsRegisteredPairsWithMonotonicStamps) {
   hal::RgbdFrame frame;
   std::int64_t previous_ns = 0;
   std::uint32_t previous_sequence = 0;
-  for (int i = 0; i < 10; ++i) {
+  std::vector<double> spacings_per_frame_ms;
+  constexpr int kFrames = 30;  // a second: a new least delay is rare after the first few
+  for (int i = 0; i < kFrames; ++i) {
     ASSERT_EQ(camera.read(frame, 1000ms), hal::ReadStatus::kOk)
         << "frame " << i << ": unpaired " << camera.counters().unpaired << ", corrupt " << camera.counters().corrupt
         << ", dropped " << camera.counters().dropped << "; " << camera.describe();
@@ -53,13 +57,23 @@ TEST(OpenNI2Camera, DummyDeviceStreamsRegisteredPairsWithMonotonicStamps) {
     EXPECT_DOUBLE_EQ(frame.stamp_s, static_cast<double>(frame.stamp_ns) * 1e-9);
     if (i > 0) {
       EXPECT_GT(frame.sequence, previous_sequence);
-      // 30 Hz device stamps, mapped without jitter: about 33 ms apart.
-      EXPECT_NEAR(static_cast<double>(frame.stamp_ns - previous_ns) * 1e-6, 33.0 * (frame.sequence - previous_sequence), 2.0);
+      // The device stamps its frames 33 ms apart. They are mapped onto the monotonic clock by
+      // the least delay seen so far, which only ever shrinks: a frame that arrives faster than
+      // all before it moves the mapping earlier (under emulation, the first frames arrive late).
+      // So the mapped spacing is never more than the device's, and is the device's once the
+      // least delay has been seen.
+      const double spacing_ms = static_cast<double>(frame.stamp_ns - previous_ns) * 1e-6;
+      const double device_ms = 33.0 * (frame.sequence - previous_sequence);
+      EXPECT_LE(spacing_ms, device_ms + 0.01) << "frame " << i;
+      spacings_per_frame_ms.push_back(spacing_ms / (frame.sequence - previous_sequence));
     }
     previous_ns = frame.stamp_ns;
     previous_sequence = frame.sequence;
   }
-  EXPECT_EQ(camera.counters().frames, 10U);
+  // Most pairs keep the device's spacing exactly: without jitter from the arrival times.
+  std::sort(spacings_per_frame_ms.begin(), spacings_per_frame_ms.end());
+  EXPECT_NEAR(spacings_per_frame_ms[spacings_per_frame_ms.size() / 2], 33.0, 0.01);
+  EXPECT_EQ(camera.counters().frames, static_cast<std::uint64_t>(kFrames));
   EXPECT_EQ(camera.counters().faults, 0U);
   EXPECT_NE(camera.describe().find("320x240@30"), std::string::npos) << camera.describe();
   camera.close();
