@@ -44,6 +44,19 @@ void Companion::launch(Trampoline trampoline, void* context) {
 void Companion::wait() {
   if (!started()) return;
   std::unique_lock<std::mutex> lock(mutex_);
+  if (pending_ && !claimed_) {
+    // The companion has not picked the task up yet (still waking, or its core is busy): the
+    // caller, which would only wait, runs it itself.
+    claimed_ = true;
+    const Trampoline trampoline = trampoline_;
+    void* const context = context_;
+    lock.unlock();
+    trampoline(context);
+    lock.lock();
+    pending_ = false;
+    claimed_ = false;
+    return;
+  }
   changed_.wait(lock, [this] { return !pending_; });
 }
 
@@ -53,8 +66,9 @@ void Companion::companion_main() {
     void* context = nullptr;
     {
       std::unique_lock<std::mutex> lock(mutex_);
-      changed_.wait(lock, [this] { return pending_ || stopping_; });
-      if (!pending_) return;  // stopping with nothing left to run
+      changed_.wait(lock, [this] { return (pending_ && !claimed_) || stopping_; });
+      if (!pending_ || claimed_) return;  // stopping with nothing left to run
+      claimed_ = true;
       trampoline = trampoline_;
       context = context_;
     }
@@ -62,6 +76,7 @@ void Companion::companion_main() {
     {
       const std::lock_guard<std::mutex> lock(mutex_);
       pending_ = false;
+      claimed_ = false;
     }
     changed_.notify_all();
   }

@@ -1,9 +1,29 @@
 #include "rankslam/parallel/thread_team.hpp"
 
 #include <algorithm>
+#include <chrono>
 #include <system_error>
 
+#include <sched.h>
+
+#if defined(__x86_64__) || defined(__i386__)
+#include <immintrin.h>
+#endif
+
 namespace rankslam::parallel {
+
+namespace {
+
+// Eases a polling core (and a sibling hyper-thread) without giving up the time slice.
+inline void cpu_relax() {
+#if defined(__x86_64__) || defined(__i386__)
+  _mm_pause();
+#elif defined(__aarch64__) || defined(__arm__)
+  __asm__ __volatile__("yield");
+#endif
+}
+
+}  // namespace
 
 ThreadTeam::~ThreadTeam() { stop(); }
 
@@ -13,7 +33,7 @@ std::string ThreadTeam::start(int threads) {
     return "threads must be in [1, " + std::to_string(kMaxThreads) + "], got " +
            std::to_string(threads);
   }
-  stopping_ = false;
+  stopping_.store(false);
   workers_.reserve(static_cast<std::size_t>(threads - 1));
   for (int thread = 1; thread < threads; ++thread) {
     try {
@@ -30,7 +50,7 @@ std::string ThreadTeam::start(int threads) {
 void ThreadTeam::stop() {
   {
     const std::lock_guard<std::mutex> lock(mutex_);
-    stopping_ = true;
+    stopping_.store(true);
   }
   wake_.notify_all();
   for (std::thread& worker : workers_) worker.join();
@@ -59,15 +79,36 @@ void ThreadTeam::run(int count, int grain, Trampoline trampoline, void* context)
     count_ = count;
     grain_ = grain;
     next_.store(0, std::memory_order_relaxed);
-    running_workers_ = static_cast<int>(workers_.size());
-    ++generation_;
+    open_ = true;
+    generation_.store(generation_.load(std::memory_order_relaxed) + 1, std::memory_order_release);
   }
   wake_.notify_all();
   work(0, trampoline, context);
-  // The loop's memory (the body and what it writes) is only released once every worker has
-  // left it, so wait for all of them, not just for the last chunk.
+  // Every chunk has been handed out. A worker that has not joined by now has nothing left to
+  // do: the loop is closed to it, so the caller never waits for a worker still waking up (or
+  // not yet scheduled, when other threads hold the cores). Only the workers inside the loop are
+  // waited for, since its memory (the body and what it writes) must outlive them.
   std::unique_lock<std::mutex> lock(mutex_);
-  finished_.wait(lock, [this] { return running_workers_ == 0; });
+  open_ = false;
+  finished_.wait(lock, [this] { return active_workers_ == 0; });
+}
+
+bool ThreadTeam::poll_for_loop(std::uint64_t seen) const {
+  // Reading the clock costs as much as a few dozen polls; yielding lets a thread waiting for
+  // this core (the companion, the robot's other work) run instead of the poll.
+  constexpr unsigned kPollsPerCheck = 64;
+  const auto deadline = std::chrono::steady_clock::now() + kPollBeforeSleep;
+  for (unsigned polls = 1;; ++polls) {
+    if (generation_.load(std::memory_order_acquire) != seen ||
+        stopping_.load(std::memory_order_acquire)) {
+      return true;
+    }
+    if (polls % kPollsPerCheck == 0) {
+      if (std::chrono::steady_clock::now() > deadline) return false;
+      sched_yield();
+    }
+    cpu_relax();
+  }
 }
 
 void ThreadTeam::worker_main(int thread) {
@@ -75,11 +116,20 @@ void ThreadTeam::worker_main(int thread) {
   for (;;) {
     Trampoline trampoline = nullptr;
     void* context = nullptr;
+    // A frame's loops follow each other within microseconds: a worker that polls for the next
+    // one is in it at once, where one woken from sleep was often queued behind the caller on the
+    // caller's own core. Between frames it sleeps.
+    (void)poll_for_loop(seen);
     {
       std::unique_lock<std::mutex> lock(mutex_);
-      wake_.wait(lock, [&] { return stopping_ || generation_ != seen; });
-      if (stopping_) return;
-      seen = generation_;
+      wake_.wait(lock, [&] {
+        return stopping_.load(std::memory_order_relaxed) ||
+               generation_.load(std::memory_order_relaxed) != seen;
+      });
+      if (stopping_.load(std::memory_order_relaxed)) return;
+      seen = generation_.load(std::memory_order_relaxed);
+      if (!open_) continue;  // arrived after the caller had handed out every chunk
+      ++active_workers_;
       trampoline = trampoline_;
       context = context_;
     }
@@ -87,7 +137,7 @@ void ThreadTeam::worker_main(int thread) {
     bool last = false;
     {
       const std::lock_guard<std::mutex> lock(mutex_);
-      last = --running_workers_ == 0;
+      last = --active_workers_ == 0;
     }
     if (last) finished_.notify_one();
   }

@@ -1,6 +1,8 @@
 #include "rankslam/parallel/thread_team.hpp"
 
 #include <atomic>
+#include <chrono>
+#include <thread>
 #include <cstdint>
 #include <numeric>
 #include <vector>
@@ -32,13 +34,14 @@ TEST(ThreadTeam, AnUnstartedTeamRunsTheWholeLoopOnTheCaller) {
 }
 
 // Every index once, every thread number in range, over 600 loops of varied sizes and grains:
-// a lost wake-up or a chunk handed out twice shows here.
+// a lost wake-up or a chunk handed out twice shows here. (Whether the workers take any of these
+// short loops' chunks depends on when they get a core; AWorkerTakesTheChunksTheCallerCannot
+// checks that they take part.)
 TEST(ThreadTeam, EveryIndexIsVisitedOnceInEveryLoop) {
   for (const int threads : {2, 3, 4}) {
     ThreadTeam team;
     ASSERT_EQ(team.start(threads), "");
     std::vector<std::atomic<int>> visits(5000);
-    std::vector<std::atomic<int>> chunks_by_thread(static_cast<std::size_t>(threads));
     for (int loop = 0; loop < 600; ++loop) {
       const int count = 1 + (loop * 37) % 5000;
       const int grain = 1 + loop % 64;
@@ -47,16 +50,41 @@ TEST(ThreadTeam, EveryIndexIsVisitedOnceInEveryLoop) {
         ASSERT_GE(thread, 0);
         ASSERT_LT(thread, threads);
         ASSERT_LE(end - begin, grain);
-        chunks_by_thread[static_cast<std::size_t>(thread)].fetch_add(1);
         for (int i = begin; i < end; ++i) visits[static_cast<std::size_t>(i)].fetch_add(1);
       });
       int wrong = 0;
       for (int i = 0; i < count; ++i) wrong += visits[static_cast<std::size_t>(i)].load() != 1 ? 1 : 0;
       ASSERT_EQ(wrong, 0) << "loop " << loop << " of " << count << " indices, grain " << grain;
     }
-    int workers_used = 0;
-    for (int t = 1; t < threads; ++t) workers_used += chunks_by_thread[static_cast<std::size_t>(t)].load() > 0 ? 1 : 0;
-    EXPECT_GT(workers_used, 0) << threads << " threads: the workers never took a chunk";
+  }
+}
+
+// A worker takes part: the caller's chunk waits (bounded) until another thread has taken the
+// other chunk, which only a worker can do while the caller is inside its own.
+TEST(ThreadTeam, AWorkerTakesTheChunksTheCallerCannot) {
+  ThreadTeam team;
+  ASSERT_EQ(team.start(2), "");
+  for (int loop = 0; loop < 50; ++loop) {
+    std::atomic<int> taken_by_worker{0};
+    std::atomic<bool> timed_out{false};
+    team.for_chunks(2, 1, [&](int begin, int, int thread) {
+      if (thread != 0) {
+        taken_by_worker.fetch_add(1);
+        return;
+      }
+      if (begin != 0) return;  // a worker already holds chunk 0
+      const auto deadline = std::chrono::steady_clock::now() + std::chrono::seconds(20);
+      while (taken_by_worker.load() == 0) {
+        if (std::chrono::steady_clock::now() > deadline) {
+          timed_out = true;
+          return;
+        }
+        std::this_thread::yield();
+      }
+    });
+    ASSERT_FALSE(timed_out.load()) << "loop " << loop << ": no worker took the second chunk in 20 s";
+    // Whichever chunk the caller took (if any), the other went to the worker.
+    ASSERT_GE(taken_by_worker.load(), 1) << "loop " << loop;
   }
 }
 

@@ -25,9 +25,10 @@ class Companion {
   [[nodiscard]] std::string start();
   [[nodiscard]] bool started() const { return thread_.joinable(); }
 
-  /// Runs task() on the companion thread (on the caller when not started). `task` must stay
-  /// alive, and what it touches untouched by the caller, until wait() returns; one task at a
-  /// time. The task must not throw.
+  /// Runs task() on the companion thread (on the caller when not started, or when the companion
+  /// has not picked it up by the time the caller waits). `task` must stay alive, and what it
+  /// touches untouched by the caller, until wait() returns; one task at a time. The task must
+  /// not throw, and must be fit to run on either thread.
   template <class Task>
   void launch(Task& task) {
     using Decayed = std::remove_const_t<Task>;
@@ -35,7 +36,8 @@ class Companion {
            const_cast<void*>(static_cast<const void*>(&task)));
   }
 
-  /// Returns once the launched task has finished (at once when none is running).
+  /// Returns once the launched task has finished (at once when none is running). A task the
+  /// companion has not started yet runs on the caller, inside wait().
   void wait();
 
  private:
@@ -50,6 +52,7 @@ class Companion {
   Trampoline trampoline_ = nullptr;
   void* context_ = nullptr;
   bool pending_ = false;  // a task handed over and not finished yet
+  bool claimed_ = false;  // the pending task is running, on the companion or on the caller
   bool stopping_ = false;
 };
 

@@ -2,10 +2,11 @@
 
 // A fixed team of threads that shares the per-frame loops of the front-end (normals, saliency,
 // descriptors, matching, hypotheses) between the cores of the robot computer. The threads are
-// started at set-up and sleep between loops; a loop allocates nothing and returns when every
-// index is done, so callers see a plain blocking call.
+// started at set-up, poll briefly for the next loop and then sleep until one comes; a loop
+// allocates nothing and returns when every index is done, so callers see a plain blocking call.
 
 #include <atomic>
+#include <chrono>
 #include <condition_variable>
 #include <cstdint>
 #include <mutex>
@@ -21,6 +22,9 @@ class ThreadTeam {
   /// Largest team: the per-thread scratch of the callers is sized by size(), and more threads
   /// than this buy nothing on the loops it serves (a few thousand items each).
   static constexpr int kMaxThreads = 8;
+  /// How long an idle worker polls for the next loop before it sleeps: longer than the gaps
+  /// between a frame's loops, far shorter than the gap between frames.
+  static constexpr std::chrono::microseconds kPollBeforeSleep{200};
 
   /// A team of one: every loop runs on the calling thread.
   ThreadTeam() = default;
@@ -65,6 +69,8 @@ class ThreadTeam {
   void run(int count, int grain, Trampoline trampoline, void* context);
   void work(int thread, Trampoline trampoline, void* context);
   void worker_main(int thread);
+  /// Polls for a loop after `seen` (or stop) for up to kPollBeforeSleep; true if one came.
+  [[nodiscard]] bool poll_for_loop(std::uint64_t seen) const;
   void stop();
 
   std::vector<std::thread> workers_;
@@ -76,9 +82,10 @@ class ThreadTeam {
   void* context_ = nullptr;
   int count_ = 0;
   int grain_ = 1;
-  std::uint64_t generation_ = 0;
-  int running_workers_ = 0;
-  bool stopping_ = false;
+  std::atomic<std::uint64_t> generation_{0};  // written under mutex_, polled without it
+  bool open_ = false;       // workers may still join the current loop
+  int active_workers_ = 0;  // workers inside the current loop
+  std::atomic<bool> stopping_{false};
   std::atomic<int> next_{0};
 };
 
