@@ -1,11 +1,13 @@
 // Closed-form rigid solver (weighted Umeyama), its degeneracy checks, the rigid model, the
 // Kinect correspondence sigmas and the motion gate.
 
+#include <algorithm>
 #include <array>
 #include <cmath>
 #include <limits>
 #include <numbers>
 #include <random>
+#include <utility>
 #include <vector>
 
 #include <gtest/gtest.h>
@@ -243,6 +245,45 @@ TEST(RigidModel, ResidualsMatchDefinition) {
   model.squared_residuals(T, 130, 7, part.data());
   for (int i = 0; i < 7; ++i) {
     EXPECT_DOUBLE_EQ(part[static_cast<std::size_t>(i)], r2[static_cast<std::size_t>(130 + i)]);
+  }
+}
+
+// The one-pass scores are the selection scores scaled by the inverse variances, value for
+// value (the hypothesis ranking must not depend on the CPU's vector width), and the count below
+// the bound is exact; sub-ranges of every length exercise the 8-wide body and its tail.
+TEST(RigidModel, ScaledSelectionScoresAreTheScaledSelectionScores) {
+  constexpr int kPoints = 301;
+  const Eigen::Matrix3Xd src = random_points(kPoints, 21);
+  const Eigen::Matrix3Xd dst = random_points(kPoints, 22);
+  RigidModel model(kPoints);
+  ASSERT_EQ(model.set_correspondences(src, dst), RobustStatus::kOk);
+  const Eigen::Isometry3d T = make_motion(0.3, {0.2, 1, -0.5}, {0.1, -0.3, 0.2});
+  std::mt19937_64 rng(23);
+  std::uniform_real_distribution<double> inverse_variance(1e2, 1e6);
+  std::vector<double> inverse_variances(kPoints);
+  for (double& v : inverse_variances) v = inverse_variance(rng);
+  std::vector<double> reference(kPoints);
+  std::vector<double> scores(kPoints);
+  for (const bool scaled : {false, true}) {
+    for (const auto& [begin, count] : {std::pair{0, kPoints}, std::pair{5, 8}, std::pair{17, 7},
+                                       std::pair{40, 129}, std::pair{300, 1}}) {
+      model.selection_scores(T, begin, count, reference.data());
+      const double* factors = scaled ? inverse_variances.data() + begin : nullptr;
+      if (scaled) {
+        for (int i = 0; i < count; ++i) reference[static_cast<std::size_t>(i)] *= factors[i];
+      }
+      std::vector<double> sorted(reference.begin(), reference.begin() + count);
+      std::sort(sorted.begin(), sorted.end());
+      const double bound = sorted[sorted.size() / 2];  // about half below, ties included
+      const int expected_below = static_cast<int>(
+          std::count_if(reference.begin(), reference.begin() + count, [&](double v) { return v < bound; }));
+      const int below = model.scaled_selection_scores(T, begin, count, factors, bound, scores.data());
+      EXPECT_EQ(below, expected_below) << "begin " << begin << ", count " << count;
+      for (int i = 0; i < count; ++i) {
+        ASSERT_EQ(scores[static_cast<std::size_t>(i)], reference[static_cast<std::size_t>(i)])
+            << "point " << begin + i << (scaled ? ", scaled" : "");
+      }
+    }
   }
 }
 

@@ -179,6 +179,19 @@ RobustResult<typename Model::Params> estimate_msse(
     if (inverse_variances != nullptr) detail::scale_values(out, inverse_variances + begin, count);
   };
 
+  // Scores of points [begin, begin + count) into out; how many are below `bound`.
+  const auto score_below = [&](const Params& hypothesis, int begin, int count, double bound,
+                               double* out) {
+    if constexpr (HasScaledSelectionScores<Model>) {
+      return model.scaled_selection_scores(
+          hypothesis, begin, count, inverse_variances != nullptr ? inverse_variances + begin : nullptr,
+          bound, out);
+    } else {
+      evaluate(hypothesis, begin, count, out);
+      return detail::count_below(out, count, bound);
+    }
+  };
+
   // Step 1: least k-th order. least_kth scores a hypothesis into `scratch` and is true, with its
   // k0-th value in `kth`, unless it is certain to fall short of `bound` (when bounded): it cannot
   // have k0 values below the best so far, so its evaluation stops early.
@@ -188,12 +201,11 @@ RobustResult<typename Model::Params> estimate_msse(
       int below = 0;
       for (int begin = 0; begin < n; begin += kBlock) {
         const int count = std::min(kBlock, n - begin);
-        evaluate(hypothesis, begin, count, scratch + begin);
-        below += detail::count_below(scratch + begin, count, bound);
+        below += score_below(hypothesis, begin, count, bound, scratch + begin);
         if (below + (n - begin - count) < k0) return false;
       }
     } else {
-      evaluate(hypothesis, 0, n, scratch);
+      (void)score_below(hypothesis, 0, n, std::numeric_limits<double>::infinity(), scratch);
     }
     std::nth_element(scratch, scratch + (k0 - 1), scratch + n);
     kth = scratch[k0 - 1];
