@@ -562,8 +562,7 @@ std::string CloudPreprocessor::configure(const slam::DepthCameraModel& camera,
       ray_y_[i] = r.y();
     }
   }
-  block_sums_.assign(static_cast<std::size_t>(blocks_.width) * static_cast<std::size_t>(blocks_.height),
-                     BlockAccumulator{});
+  block_sums_.reserve(blocks_.width, blocks_.height);
   max_points_ = max_sampled_points;
   return {};
 }
@@ -583,7 +582,7 @@ bool CloudPreprocessor::voxelise(const cv::Mat& depth, float leaf_m, int& voxels
                                  int& dense_points) {
   voxels = 0;
   dense_points = 0;
-  std::fill(block_sums_.begin(), block_sums_.end(), BlockAccumulator{});
+  block_sums_.clear();
   // Bands end on block rows, so that each block's sums come from one band.
   constexpr int kBlock = BlockImage::kBlock;
   const int block_rows = (depth.rows + kBlock - 1) / kBlock;
@@ -659,8 +658,6 @@ bool CloudPreprocessor::voxelise_rows(const cv::Mat& depth, float leaf_m, int ro
   const std::uint32_t generation = band.generation;
   for (int v = row_begin; v < row_end; ++v) {
     const std::uint16_t* row = depth.ptr<std::uint16_t>(v);
-    BlockAccumulator* block_row =
-        block_sums_.data() + static_cast<std::ptrdiff_t>(v / BlockImage::kBlock) * blocks_.width;
     // The points and voxel coordinates of the row first (vectorised where the CPU allows),
     // then the hashing and sums, which depend on the previous pixel's voxel.
     const std::size_t row_start = static_cast<std::size_t>(v) * static_cast<std::size_t>(depth.cols);
@@ -676,6 +673,8 @@ bool CloudPreprocessor::voxelise_rows(const cv::Mat& depth, float leaf_m, int ro
     prepare_row_portable(row, ray_x_.data() + row_start, ray_y_.data() + row_start, depth.cols,
                          metres_per_unit, min_m, max_m, inverse_leaf, row_points);
 #endif
+    block_sums_.add_row(band.row_x.data(), band.row_y.data(), band.row_z.data(), depth.cols,
+                        v / BlockImage::kBlock);
     std::int32_t last_x = 0, last_y = 0, last_z = 0;
     int last_voxel = -1;
     for (int u = 0; u < depth.cols; ++u) {
@@ -701,16 +700,6 @@ bool CloudPreprocessor::voxelise_rows(const cv::Mat& depth, float leaf_m, int ro
         last_z = zc;
         last_voxel = voxel;
       }
-      BlockAccumulator& b = block_row[u / BlockImage::kBlock];
-      if (b.count == 0) {
-        b.min = p;
-        b.max = p;
-      } else {
-        b.min = b.min.cwiseMin(p);
-        b.max = b.max.cwiseMax(p);
-      }
-      b.sum += p;
-      ++b.count;
       Accumulator& a = band.accumulators[static_cast<std::size_t>(voxel)];
       a.x += p.x();
       a.y += p.y();
@@ -722,6 +711,147 @@ bool CloudPreprocessor::voxelise_rows(const cv::Mat& depth, float leaf_m, int ro
     }
   }
   return true;
+}
+
+namespace {
+
+// One block's points of one row (z = 0: no point), in pixel order: the sums, bounds and count.
+void add_block_points_portable(const float* x, const float* y, const float* z, int count,
+                               float& sum_x, float& sum_y, float& sum_z, float& min_x,
+                               float& min_y, float& min_z, float& max_x, float& max_y,
+                               float& max_z, std::int32_t& points) {
+  for (int c = 0; c < count; ++c) {
+    if (!(z[c] > 0.0F)) continue;
+    sum_x += x[c];
+    sum_y += y[c];
+    sum_z += z[c];
+    min_x = std::min(min_x, x[c]);
+    min_y = std::min(min_y, y[c]);
+    min_z = std::min(min_z, z[c]);
+    max_x = std::max(max_x, x[c]);
+    max_y = std::max(max_y, y[c]);
+    max_z = std::max(max_z, z[c]);
+    ++points;
+  }
+}
+
+#ifdef RANKSLAM_GEOMETRY_HAVE_AVX2_NORMALS
+// The 4 pixels of 8 consecutive blocks (32 pixels from `row`) as 4 vectors, vector c holding
+// pixel c of blocks 0..7 in order.
+__attribute__((target("avx2"))) inline void pixels_of_8_blocks(const float* row, __m256 (&pixel)[4]) {
+  const __m256 v0 = _mm256_loadu_ps(row);       // blocks 0, 1
+  const __m256 v1 = _mm256_loadu_ps(row + 8);   // blocks 2, 3
+  const __m256 v2 = _mm256_loadu_ps(row + 16);  // blocks 4, 5
+  const __m256 v3 = _mm256_loadu_ps(row + 24);  // blocks 6, 7
+  const __m256 t0 = _mm256_unpacklo_ps(v0, v1);
+  const __m256 t1 = _mm256_unpackhi_ps(v0, v1);
+  const __m256 t2 = _mm256_unpacklo_ps(v2, v3);
+  const __m256 t3 = _mm256_unpackhi_ps(v2, v3);
+  // The shuffles leave blocks in the order 0 2 4 6 1 3 5 7.
+  const __m256i order = _mm256_setr_epi32(0, 4, 1, 5, 2, 6, 3, 7);
+  pixel[0] = _mm256_permutevar8x32_ps(_mm256_shuffle_ps(t0, t2, _MM_SHUFFLE(1, 0, 1, 0)), order);
+  pixel[1] = _mm256_permutevar8x32_ps(_mm256_shuffle_ps(t0, t2, _MM_SHUFFLE(3, 2, 3, 2)), order);
+  pixel[2] = _mm256_permutevar8x32_ps(_mm256_shuffle_ps(t1, t3, _MM_SHUFFLE(1, 0, 1, 0)), order);
+  pixel[3] = _mm256_permutevar8x32_ps(_mm256_shuffle_ps(t1, t3, _MM_SHUFFLE(3, 2, 3, 2)), order);
+}
+
+// add_block_points_portable for 8 blocks at a time (AVX2, chosen at run time): each block's
+// points added in the same order, no point added as +0 (which leaves a sum that started at +0
+// unchanged) and bounded as ±infinity, so the same sums and bounds. Returns the blocks done.
+__attribute__((target("avx2"))) int add_row_avx2(const float* x, const float* y, const float* z,
+                                                 int blocks, float* sum_x, float* sum_y,
+                                                 float* sum_z, float* min_x, float* min_y,
+                                                 float* min_z, float* max_x, float* max_y,
+                                                 float* max_z, std::int32_t* count) {
+  const __m256 zero = _mm256_setzero_ps();
+  const __m256 infinity = _mm256_set1_ps(std::numeric_limits<float>::infinity());
+  const __m256 minus_infinity = _mm256_set1_ps(-std::numeric_limits<float>::infinity());
+  int b = 0;
+  for (; b + 8 <= blocks; b += 8) {
+    const int first_pixel = b * BlockImage::kBlock;
+    __m256 px[4];
+    __m256 py[4];
+    __m256 pz[4];
+    pixels_of_8_blocks(x + first_pixel, px);
+    pixels_of_8_blocks(y + first_pixel, py);
+    pixels_of_8_blocks(z + first_pixel, pz);
+    __m256 sx = _mm256_loadu_ps(sum_x + b), sy = _mm256_loadu_ps(sum_y + b), sz = _mm256_loadu_ps(sum_z + b);
+    __m256 lx = _mm256_loadu_ps(min_x + b), ly = _mm256_loadu_ps(min_y + b), lz = _mm256_loadu_ps(min_z + b);
+    __m256 hx = _mm256_loadu_ps(max_x + b), hy = _mm256_loadu_ps(max_y + b), hz = _mm256_loadu_ps(max_z + b);
+    __m256i n = _mm256_loadu_si256(reinterpret_cast<const __m256i*>(count + b));
+    for (int c = 0; c < BlockImage::kBlock; ++c) {
+      const __m256 valid = _mm256_cmp_ps(pz[c], zero, _CMP_GT_OQ);
+      sx = _mm256_add_ps(sx, _mm256_and_ps(valid, px[c]));
+      sy = _mm256_add_ps(sy, _mm256_and_ps(valid, py[c]));
+      sz = _mm256_add_ps(sz, _mm256_and_ps(valid, pz[c]));
+      lx = _mm256_min_ps(lx, _mm256_blendv_ps(infinity, px[c], valid));
+      ly = _mm256_min_ps(ly, _mm256_blendv_ps(infinity, py[c], valid));
+      lz = _mm256_min_ps(lz, _mm256_blendv_ps(infinity, pz[c], valid));
+      hx = _mm256_max_ps(hx, _mm256_blendv_ps(minus_infinity, px[c], valid));
+      hy = _mm256_max_ps(hy, _mm256_blendv_ps(minus_infinity, py[c], valid));
+      hz = _mm256_max_ps(hz, _mm256_blendv_ps(minus_infinity, pz[c], valid));
+      n = _mm256_sub_epi32(n, _mm256_castps_si256(valid));  // valid lanes are −1
+    }
+    _mm256_storeu_ps(sum_x + b, sx);
+    _mm256_storeu_ps(sum_y + b, sy);
+    _mm256_storeu_ps(sum_z + b, sz);
+    _mm256_storeu_ps(min_x + b, lx);
+    _mm256_storeu_ps(min_y + b, ly);
+    _mm256_storeu_ps(min_z + b, lz);
+    _mm256_storeu_ps(max_x + b, hx);
+    _mm256_storeu_ps(max_y + b, hy);
+    _mm256_storeu_ps(max_z + b, hz);
+    _mm256_storeu_si256(reinterpret_cast<__m256i*>(count + b), n);
+  }
+  return b;
+}
+#endif
+
+}  // namespace
+
+void CloudPreprocessor::BlockSums::reserve(int blocks_per_row, int block_rows) {
+  stride = (std::max(0, blocks_per_row) + 7) / 8 * 8;
+  const auto n = static_cast<std::size_t>(stride) * static_cast<std::size_t>(std::max(0, block_rows));
+  for (std::vector<float>* v : {&sum_x, &sum_y, &sum_z, &min_x, &min_y, &min_z, &max_x, &max_y, &max_z}) {
+    v->assign(n, 0.0F);
+  }
+  count.assign(n, 0);
+  clear();
+}
+
+void CloudPreprocessor::BlockSums::clear() {
+  for (std::vector<float>* v : {&sum_x, &sum_y, &sum_z}) std::fill(v->begin(), v->end(), 0.0F);
+  for (std::vector<float>* v : {&min_x, &min_y, &min_z}) {
+    std::fill(v->begin(), v->end(), std::numeric_limits<float>::infinity());
+  }
+  for (std::vector<float>* v : {&max_x, &max_y, &max_z}) {
+    std::fill(v->begin(), v->end(), -std::numeric_limits<float>::infinity());
+  }
+  std::fill(count.begin(), count.end(), 0);
+}
+
+void CloudPreprocessor::BlockSums::add_row(const float* x, const float* y, const float* z,
+                                           int width, int block_row) {
+  constexpr int kBlock = BlockImage::kBlock;
+  const int blocks = (width + kBlock - 1) / kBlock;
+  const std::size_t first = static_cast<std::size_t>(block_row) * static_cast<std::size_t>(stride);
+  int done = 0;
+#ifdef RANKSLAM_GEOMETRY_HAVE_AVX2_NORMALS
+  if (normals_cpu_has_avx2()) {
+    // Whole groups of 8 blocks that lie inside the row.
+    done = add_row_avx2(x, y, z, width / kBlock, sum_x.data() + first, sum_y.data() + first,
+                        sum_z.data() + first, min_x.data() + first, min_y.data() + first,
+                        min_z.data() + first, max_x.data() + first, max_y.data() + first,
+                        max_z.data() + first, count.data() + first);
+  }
+#endif
+  for (int b = done; b < blocks; ++b) {
+    const std::size_t k = first + static_cast<std::size_t>(b);
+    const int u = b * kBlock;
+    add_block_points_portable(x + u, y + u, z + u, std::min(kBlock, width - u), sum_x[k], sum_y[k],
+                              sum_z[k], min_x[k], min_y[k], min_z[k], max_x[k], max_y[k], max_z[k],
+                              count[k]);
+  }
 }
 
 void CloudPreprocessor::split_block(const cv::Mat& depth, int bu, int bv, float split_z,
@@ -808,29 +938,29 @@ GeometryStatus CloudPreprocessor::process(const cv::Mat& depth, SampledCloud& cl
   blocks_.part_count = 0;
   for (int bv = 0; bv < blocks_.height; ++bv) {
     for (int bu = 0; bu < blocks_.width; ++bu) {
-      const BlockAccumulator& sum =
-          block_sums_[static_cast<std::size_t>(bv) * static_cast<std::size_t>(blocks_.width) +
-                      static_cast<std::size_t>(bu)];
+      const std::size_t k = static_cast<std::size_t>(bv) * static_cast<std::size_t>(block_sums_.stride) +
+                            static_cast<std::size_t>(bu);
       const std::size_t b = blocks_.index(bu, bv);
       blocks_.weight[b] = 0.0F;
       blocks_.edge_weight[b] = 0.0F;
-      if (sum.count == 0) continue;
-      const auto count = static_cast<float>(sum.count);
-      const Eigen::Vector3f mean = sum.sum / count;
+      if (block_sums_.count[k] == 0) continue;
+      const auto count = static_cast<float>(block_sums_.count[k]);
+      const Eigen::Vector3f mean =
+          Eigen::Vector3f(block_sums_.sum_x[k], block_sums_.sum_y[k], block_sums_.sum_z[k]) / count;
       blocks_.x[b] = mean.x();
       blocks_.y[b] = mean.y();
       blocks_.z[b] = mean.z();
-      blocks_.x_min[b] = sum.min.x();
-      blocks_.x_max[b] = sum.max.x();
-      blocks_.y_min[b] = sum.min.y();
-      blocks_.y_max[b] = sum.max.y();
-      blocks_.z_min[b] = sum.min.z();
-      blocks_.z_max[b] = sum.max.z();
+      blocks_.x_min[b] = block_sums_.min_x[k];
+      blocks_.x_max[b] = block_sums_.max_x[k];
+      blocks_.y_min[b] = block_sums_.min_y[k];
+      blocks_.y_max[b] = block_sums_.max_y[k];
+      blocks_.z_min[b] = block_sums_.min_z[k];
+      blocks_.z_max[b] = block_sums_.max_z[k];
       const float max_span = 6.0F * block_span_per_m * mean.z() + 3e-3F * mean.z() * mean.z();
       blocks_.first_part[b] = -1;
-      if (sum.max.z() - sum.min.z() > max_span) {
+      if (block_sums_.max_z[k] - block_sums_.min_z[k] > max_span) {
         blocks_.edge_weight[b] = count;
-        split_block(depth, bu, bv, 0.5F * (sum.min.z() + sum.max.z()), b);
+        split_block(depth, bu, bv, 0.5F * (block_sums_.min_z[k] + block_sums_.max_z[k]), b);
       } else {
         blocks_.weight[b] = count;
       }

@@ -1,5 +1,6 @@
 #include <algorithm>
 #include <cmath>
+#include <limits>
 #include <map>
 #include <tuple>
 #include <vector>
@@ -113,6 +114,58 @@ TEST_F(CloudTest, VoxelCentroidsMatchABruteForceVoxelGrid) {
     EXPECT_LT((reference - c.cast<double>()).norm(), 1e-5) << "voxel " << i;
     EXPECT_EQ(cloud_.dense_counts[static_cast<std::size_t>(i)], it->second.second);
   }
+}
+
+// The 4 x 4 blocks' means, bounds and point counts (the normals' input) against a plain pass
+// over each block's pixels in pixel order, on a frame with holes and a width that is not a
+// whole number of 8-block groups: the vectorised rows and their portable tail alike.
+TEST_F(CloudTest, BlockMeansAndBoundsMatchAPlainPassOverTheirPixels) {
+  hal::CameraCalibration calibration = testing::test_calibration();
+  calibration.width = 628;  // 157 blocks: 19 groups of 8 and 5 more
+  calibration.cx = 313.5;
+  const slam::DepthCameraModel camera(calibration, 5000.0);
+  cv::Mat depth = testing::render_depth(testing::room_corner(), calibration,
+                                        testing::look_at(eye_, Eigen::Vector3d(0.9, 0.9, 0.3)), 1.4e-3);
+  for (int v = 0; v < depth.rows; ++v) {
+    for (int u = (v * 3) % 7; u < depth.cols; u += 7) depth.at<std::uint16_t>(v, u) = 0;  // holes
+  }
+  CloudPreprocessor preprocessor;
+  ASSERT_EQ(preprocessor.configure(camera, config_, 16384), "");
+  SampledCloud cloud = preprocessor.make_cloud();
+  ASSERT_EQ(preprocessor.process(depth, cloud), GeometryStatus::kOk);
+  const BlockImage& blocks = preprocessor.blocks();
+  const auto max_m = static_cast<float>(config_.max_depth_m);
+  int checked = 0;
+  for (int bv = 0; bv < blocks.height; ++bv) {
+    for (int bu = 0; bu < blocks.width; ++bu) {
+      Eigen::Vector3f sum = Eigen::Vector3f::Zero();
+      Eigen::Vector3f lo = Eigen::Vector3f::Constant(std::numeric_limits<float>::infinity());
+      Eigen::Vector3f hi = -lo;
+      int count = 0;
+      for (int v = bv * BlockImage::kBlock; v < std::min((bv + 1) * BlockImage::kBlock, depth.rows); ++v) {
+        for (int u = bu * BlockImage::kBlock; u < std::min((bu + 1) * BlockImage::kBlock, depth.cols); ++u) {
+          const auto raw = depth.at<std::uint16_t>(v, u);
+          if (raw == 0) continue;
+          const float z = camera.metres(raw);
+          if (z > max_m) continue;
+          const Eigen::Vector3f p = camera.back_project(u, v, z);
+          sum += p;
+          lo = lo.cwiseMin(p);
+          hi = hi.cwiseMax(p);
+          ++count;
+        }
+      }
+      const std::size_t b = blocks.index(bu, bv);
+      ASSERT_EQ(blocks.weight[b] + blocks.edge_weight[b], static_cast<float>(count)) << "block " << bu << ", " << bv;
+      if (count == 0 || blocks.weight[b] == 0.0F) continue;  // empty, or split at a depth edge
+      const Eigen::Vector3f mean = sum / static_cast<float>(count);
+      ASSERT_EQ(blocks.mean(b), mean) << "block " << bu << ", " << bv;
+      ASSERT_EQ(Eigen::Vector3f(blocks.x_min[b], blocks.y_min[b], blocks.z_min[b]), lo);
+      ASSERT_EQ(Eigen::Vector3f(blocks.x_max[b], blocks.y_max[b], blocks.z_max[b]), hi);
+      ++checked;
+    }
+  }
+  EXPECT_GT(checked, blocks.width * blocks.height / 2);
 }
 
 TEST_F(CloudTest, PassThroughDropsFarPoints) {
