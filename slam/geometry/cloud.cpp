@@ -675,40 +675,45 @@ bool CloudPreprocessor::voxelise_rows(const cv::Mat& depth, float leaf_m, int ro
 #endif
     block_sums_.add_row(band.row_x.data(), band.row_y.data(), band.row_z.data(), depth.cols,
                         v / BlockImage::kBlock);
+    // The current voxel's sums stay in registers over its run of pixels and are written back
+    // when the run ends: the same additions in the same order as adding each pixel in memory.
     std::int32_t last_x = 0, last_y = 0, last_z = 0;
-    int last_voxel = -1;
+    int run_voxel = -1;
+    Accumulator run;
+    const auto row_v = static_cast<float>(v);
+    int points_in_row = 0;
     for (int u = 0; u < depth.cols; ++u) {
       const auto i = static_cast<std::size_t>(u);
       const float z = band.row_z[i];
       if (!(z > 0.0F)) continue;
-      const Eigen::Vector3f p(band.row_x[i], band.row_y[i], z);
       const std::int32_t x = band.row_cell_x[i];
       const std::int32_t y = band.row_cell_y[i];
       const std::int32_t zc = band.row_cell_z[i];
-      int voxel = last_voxel;
-      if (voxel < 0 || x != last_x || y != last_y || zc != last_z) {
+      if (run_voxel < 0 || x != last_x || y != last_y || zc != last_z) {
+        if (run_voxel >= 0) band.accumulators[static_cast<std::size_t>(run_voxel)] = run;
         Slot& recent = band.recent[hash_cell(x, y, zc) & (kRecentSlots - 1)];
         if (recent.generation == generation && recent.x == x && recent.y == y && recent.z == zc) {
-          voxel = recent.voxel;
+          run_voxel = recent.voxel;
         } else {
-          voxel = find_or_add_voxel(band, Eigen::Vector3i(x, y, zc));
-          if (voxel < 0) return false;
-          recent = Slot{x, y, zc, voxel, generation};
+          run_voxel = find_or_add_voxel(band, Eigen::Vector3i(x, y, zc));
+          if (run_voxel < 0) return false;
+          recent = Slot{x, y, zc, run_voxel, generation};
         }
         last_x = x;
         last_y = y;
         last_z = zc;
-        last_voxel = voxel;
+        run = band.accumulators[static_cast<std::size_t>(run_voxel)];
       }
-      Accumulator& a = band.accumulators[static_cast<std::size_t>(voxel)];
-      a.x += p.x();
-      a.y += p.y();
-      a.z += p.z();
-      a.u += static_cast<float>(u);
-      a.v += static_cast<float>(v);
-      ++a.count;
-      ++band.dense_points;
+      run.x += band.row_x[i];
+      run.y += band.row_y[i];
+      run.z += z;
+      run.u += static_cast<float>(u);
+      run.v += row_v;
+      ++run.count;
+      ++points_in_row;
     }
+    if (run_voxel >= 0) band.accumulators[static_cast<std::size_t>(run_voxel)] = run;
+    band.dense_points += points_in_row;
   }
   return true;
 }
