@@ -41,7 +41,12 @@ std::string KeypointDetector::configure(const GeometryConfig& config, int max_po
   next_remaining_.assign(static_cast<std::size_t>(max_points), 0);
   assigned_.assign(static_cast<std::size_t>(max_points), 0);
   const int threads = parallel::team_size(team);
-  candidates_.assign(static_cast<std::size_t>(max_points) * static_cast<std::size_t>(threads), 0);
+  const std::size_t per_thread = static_cast<std::size_t>(max_points) * static_cast<std::size_t>(threads);
+  candidates_.assign(per_thread, 0);
+  candidate_ranks_.assign(per_thread, 0);
+  for (std::vector<float>* v : {&candidate_x_, &candidate_y_, &candidate_z_, &candidate_d2_}) {
+    v->assign(per_thread, 0.0F);
+  }
   orientation_team_.reserve(team, config.is3d_hypotheses, robust::OrientationModel::kSampleSize, max_points);
   ranked_.assign(static_cast<std::size_t>(max_points), {0.0F, 0});
   max_points_ = max_points;
@@ -73,6 +78,56 @@ int KeypointDetector::detect(KeypointMethod method, const SampledCloud& cloud, s
   return status == GeometryStatus::kOk ? count : 0;
 }
 
+namespace {
+
+// The 27 cells around a cell, nearest first (the cell itself, then those sharing a face, an
+// edge, a corner): scanning near candidates first leaves most far ones rejected at once.
+struct CellOffset {
+  std::int8_t dx, dy, dz;
+  std::int8_t scan_index;  // position in the dx, dy, dz loop order of the scan that ranks ties
+};
+constexpr std::array<CellOffset, 27> nearest_cells_first() {
+  std::array<CellOffset, 27> offsets{};
+  int n = 0;
+  for (int shell = 0; shell <= 3; ++shell) {
+    for (int dx = -1; dx <= 1; ++dx) {
+      for (int dy = -1; dy <= 1; ++dy) {
+        for (int dz = -1; dz <= 1; ++dz) {
+          if ((dx != 0) + (dy != 0) + (dz != 0) != shell) continue;
+          offsets[static_cast<std::size_t>(n++)] = {static_cast<std::int8_t>(dx), static_cast<std::int8_t>(dy),
+                                                    static_cast<std::int8_t>(dz),
+                                                    static_cast<std::int8_t>((dx + 1) * 9 + (dy + 1) * 3 + dz + 1)};
+        }
+      }
+    }
+  }
+  return offsets;
+}
+constexpr std::array<CellOffset, 27> kNearestCellsFirst = nearest_cells_first();
+
+// keep_nearest on (squared distance, rank) pairs: the k least in that order, whatever the order
+// they arrive in. With the ranks of the 27 cells' scan, the same neighbours, in the same order,
+// as keep_nearest over that scan (which keeps the first-scanned of equal distances).
+inline void keep_nearest_ranked(float d2, int rank, int index, int k, int& found, int* indices,
+                                float* distances, int* ranks) {
+  const auto before = [](float d2_a, int rank_a, float d2_b, int rank_b) {
+    return d2_a < d2_b || (d2_a == d2_b && rank_a < rank_b);
+  };
+  if (found == k && !before(d2, rank, distances[k - 1], ranks[k - 1])) return;
+  int pos = found < k ? found++ : k - 1;
+  while (pos > 0 && before(d2, rank, distances[pos - 1], ranks[pos - 1])) {
+    distances[pos] = distances[pos - 1];
+    indices[pos] = indices[pos - 1];
+    ranks[pos] = ranks[pos - 1];
+    --pos;
+  }
+  distances[pos] = d2;
+  indices[pos] = index;
+  ranks[pos] = rank;
+}
+
+}  // namespace
+
 void KeypointDetector::compute_saliency(const SampledCloud& cloud, const std::uint8_t* wanted) {
   // θ_i = (1/N) Σ_j arccos(n_i · n_j)² over the N nearest sampled neighbours (thesis eq. 4.1–4.2).
   // Cells of 2ρ hold a few sampled points each; the 27 cells around a point's cell contain every
@@ -87,9 +142,18 @@ void KeypointDetector::compute_saliency(const SampledCloud& cloud, const std::ui
   // Cells on whichever thread of the team, each writing the saliency of its own points.
   const auto cells = grid_.cells();
   const auto saliency_of_cells = [&](int first_cell, int end_cell, int thread) {
-    int* candidates_of_thread = candidates_.data() + static_cast<std::ptrdiff_t>(thread) * max_points_;
+    const std::ptrdiff_t scratch = static_cast<std::ptrdiff_t>(thread) * max_points_;
+    int* candidate_index = candidates_.data() + scratch;
+    int* candidate_rank = candidate_ranks_.data() + scratch;
+    float* cx = candidate_x_.data() + scratch;
+    float* cy = candidate_y_.data() + scratch;
+    float* cz = candidate_z_.data() + scratch;
+    float* cd2 = candidate_d2_.data() + scratch;
     std::array<int, PointGrid::kMaxNeighbours> neighbours{};
     std::array<float, PointGrid::kMaxNeighbours> distances{};
+    std::array<int, PointGrid::kMaxNeighbours> ranks{};
+    std::array<int, 27> cell_of_scan{};
+    std::array<int, 27> first_rank_of_scan{};
     for (int cell_index = first_cell; cell_index < end_cell; ++cell_index) {
       const PointGrid::Cell& cell = cells[static_cast<std::size_t>(cell_index)];
       if (wanted != nullptr) {
@@ -99,17 +163,30 @@ void KeypointDetector::compute_saliency(const SampledCloud& cloud, const std::ui
         }
         if (!any) continue;
       }
+      // The candidates' ranks are their positions in the dx, dy, dz scan of the 27 cells; they
+      // are gathered nearest cells first.
+      int scanned = 0;
+      for (int s = 0; s < 27; ++s) {
+        const int c = grid_.find_cell(cell.x + s / 9 - 1, cell.y + (s / 3) % 3 - 1, cell.z + s % 3 - 1);
+        cell_of_scan[static_cast<std::size_t>(s)] = c;
+        first_rank_of_scan[static_cast<std::size_t>(s)] = scanned;
+        if (c >= 0) scanned += cells[static_cast<std::size_t>(c)].count;
+      }
       int candidates = 0;
-      for (int dx = -1; dx <= 1; ++dx) {
-        for (int dy = -1; dy <= 1; ++dy) {
-          for (int dz = -1; dz <= 1; ++dz) {
-            const int c = grid_.find_cell(cell.x + dx, cell.y + dy, cell.z + dz);
-            if (c < 0) continue;
-            const PointGrid::Cell& other = grid_.cells()[static_cast<std::size_t>(c)];
-            for (int j = other.start; j < other.start + other.count; ++j) {
-              candidates_of_thread[candidates++] = sorted[static_cast<std::size_t>(j)];
-            }
-          }
+      for (const CellOffset& offset : kNearestCellsFirst) {
+        const auto s = static_cast<std::size_t>(offset.scan_index);
+        const int c = cell_of_scan[s];
+        if (c < 0) continue;
+        const PointGrid::Cell& other = cells[static_cast<std::size_t>(c)];
+        for (int m = 0; m < other.count; ++m) {
+          const int j = sorted[static_cast<std::size_t>(other.start + m)];
+          const Eigen::Vector3f& q = cloud.points[static_cast<std::size_t>(j)];
+          candidate_index[candidates] = j;
+          candidate_rank[candidates] = first_rank_of_scan[s] + m;
+          cx[candidates] = q.x();
+          cy[candidates] = q.y();
+          cz[candidates] = q.z();
+          ++candidates;
         }
       }
       const Eigen::Vector3f lo = Eigen::Vector3f(static_cast<float>(cell.x - 1), static_cast<float>(cell.y - 1),
@@ -120,12 +197,19 @@ void KeypointDetector::compute_saliency(const SampledCloud& cloud, const std::ui
         const int i = sorted[static_cast<std::size_t>(m)];
         if (wanted != nullptr && wanted[static_cast<std::size_t>(i)] == 0) continue;
         const Eigen::Vector3f& p = cloud.points[static_cast<std::size_t>(i)];
+        // Squared distances of all candidates at once, each as (q − p).squaredNorm() sums it:
+        // x² + (y² + z²).
+        {
+          using Values = Eigen::Map<Eigen::ArrayXf>;
+          const Values x(cx, candidates), y(cy, candidates), z(cz, candidates);
+          Values(cd2, candidates) = (x - p.x()).square() + ((y - p.y()).square() + (z - p.z()).square());
+        }
         int found = 0;
         for (int c = 0; c < candidates; ++c) {
-          const int j = candidates_of_thread[c];
+          const int j = candidate_index[c];
           if (j == i) continue;
-          keep_nearest((cloud.points[static_cast<std::size_t>(j)] - p).squaredNorm(), j, k, found,
-                       neighbours.data(), distances.data());
+          keep_nearest_ranked(cd2[c], candidate_rank[c], j, k, found, neighbours.data(), distances.data(),
+                              ranks.data());
         }
         const float margin = std::min((p - lo).minCoeff(), (hi - p).minCoeff());
         if (found < k || distances[static_cast<std::size_t>(k - 1)] > margin * margin) {

@@ -105,6 +105,47 @@ TEST_F(KeypointTest, RosKeepsSalientPointsPastTheTransition) {
   }
 }
 
+// θ_i against a brute-force search: the mean squared normal angle to the ros_neighbours nearest
+// sampled points, on one thread and on a team.
+TEST_F(KeypointTest, RosSaliencyIsTheMeanSquaredNormalAngleToTheNearestNeighbours) {
+  const int n = cloud_.size;
+  const int k = config_.ros_neighbours;
+  std::vector<double> expected(static_cast<std::size_t>(n));
+  std::vector<std::pair<float, int>> by_distance(static_cast<std::size_t>(n));
+  for (int i = 0; i < n; ++i) {
+    const Eigen::Vector3f& p = cloud_.points[static_cast<std::size_t>(i)];
+    for (int j = 0; j < n; ++j) {
+      by_distance[static_cast<std::size_t>(j)] = {(cloud_.points[static_cast<std::size_t>(j)] - p).squaredNorm(), j};
+    }
+    by_distance[static_cast<std::size_t>(i)].first = std::numeric_limits<float>::infinity();
+    std::partial_sort(by_distance.begin(), by_distance.begin() + k, by_distance.end());
+    double sum = 0.0;
+    for (int q = 0; q < k; ++q) {
+      const Eigen::Vector3f& other = cloud_.normals[static_cast<std::size_t>(by_distance[static_cast<std::size_t>(q)].second)];
+      const double angle = std::acos(std::clamp(static_cast<double>(cloud_.normals[static_cast<std::size_t>(i)].dot(other)), -1.0, 1.0));
+      sum += angle * angle;
+    }
+    expected[static_cast<std::size_t>(i)] = sum / k;
+  }
+  parallel::ThreadTeam team;
+  ASSERT_EQ(team.start(2), "");
+  for (parallel::ThreadTeam* threads : {static_cast<parallel::ThreadTeam*>(nullptr), &team}) {
+    KeypointDetector detector;
+    ASSERT_EQ(detector.configure(config_, 16384, threads), "");
+    GeometryStatus status = GeometryStatus::kNotConfigured;
+    (void)detector.detect(KeypointMethod::kRos, cloud_, keypoints_, status);
+    ASSERT_EQ(status, GeometryStatus::kOk);
+    const auto saliency = detector.saliency();
+    ASSERT_EQ(static_cast<int>(saliency.size()), n);
+    for (int i = 0; i < n; ++i) {
+      // The detector's arc cosine is a polynomial good to about 1e-7 rad.
+      ASSERT_NEAR(saliency[static_cast<std::size_t>(i)], expected[static_cast<std::size_t>(i)],
+                  1e-5 + 1e-4 * expected[static_cast<std::size_t>(i)])
+          << "point " << i << (threads != nullptr ? ", team" : "");
+    }
+  }
+}
+
 TEST_F(KeypointTest, Is3dFindsTheRoomsThreeOrientationsAndKeepsTheRest) {
   GeometryStatus status = GeometryStatus::kNotConfigured;
   const int count = detector_.detect(KeypointMethod::kIs3d, cloud_, keypoints_, status);

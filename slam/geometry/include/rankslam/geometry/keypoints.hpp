@@ -86,7 +86,11 @@ class KeypointDetector {
   std::vector<int> remaining_;
   std::vector<int> next_remaining_;
   std::vector<std::uint8_t> assigned_;
-  std::vector<int> candidates_;  // per thread of the team: max_points_ each
+  // Per thread of the team, max_points_ each: a cell's neighbour candidates (point index, rank
+  // in the 27 cells' scan order, coordinates) and their squared distances to one point.
+  std::vector<int> candidates_;
+  std::vector<int> candidate_ranks_;
+  std::vector<float> candidate_x_, candidate_y_, candidate_z_, candidate_d2_;
   std::vector<std::pair<float, int>> ranked_;
 };
 
