@@ -4,6 +4,11 @@
 #include <cmath>
 #include <cstdlib>
 
+#if defined(__x86_64__) && defined(__GNUC__)
+#include <immintrin.h>
+#define RANKSLAM_GEOMETRY_HAVE_AVX2_GRID 1
+#endif
+
 namespace rankslam::geometry {
 
 void PointGrid::reserve(int max_points) {
@@ -16,6 +21,9 @@ void PointGrid::reserve(int max_points) {
   cell_list_.assign(static_cast<std::size_t>(capacity_), Cell{});
   point_cell_.assign(static_cast<std::size_t>(capacity_), -1);
   sorted_.assign(static_cast<std::size_t>(capacity_), 0);
+  for (std::vector<float>* v : {&sorted_x_, &sorted_y_, &sorted_z_}) {
+    v->assign(static_cast<std::size_t>(capacity_) + 8, 0.0F);
+  }
   points_ = {};
   cell_count_ = 0;
 }
@@ -88,9 +96,87 @@ bool PointGrid::build(std::span<const Eigen::Vector3f> points, float cell_m) {
   }
   for (int i = 0; i < n; ++i) {
     Cell& cell = cell_list_[static_cast<std::size_t>(point_cell_[static_cast<std::size_t>(i)])];
-    sorted_[static_cast<std::size_t>(cell.start + cell.count++)] = i;
+    const auto k = static_cast<std::size_t>(cell.start + cell.count++);
+    sorted_[k] = i;
+    const Eigen::Vector3f& p = points[static_cast<std::size_t>(i)];
+    sorted_x_[k] = p.x();
+    sorted_y_[k] = p.y();
+    sorted_z_[k] = p.z();
   }
   return true;
+}
+
+namespace {
+
+#ifdef RANKSLAM_GEOMETRY_HAVE_AVX2_GRID
+bool grid_cpu_has_avx2() {
+  static const bool has = __builtin_cpu_supports("avx2");
+  return has;
+}
+
+// PointGrid::within_radius 8 points at a time (AVX2, chosen at run time): each squared distance
+// as Eigen's squaredNorm of a 3-vector sums it, x² + (y² + z²), without FMA, so the same values.
+// Returns the hits of the whole blocks of 8; `done` is how many points those covered.
+__attribute__((target("avx2"))) int within_radius_avx2(const float* xs, const float* ys,
+                                                       const float* zs, const int* indices,
+                                                       const Eigen::Vector3f& q, float r2,
+                                                       int count, int* hits, float* hit_d2,
+                                                       int& done) {
+  const __m256 qx = _mm256_set1_ps(q.x());
+  const __m256 qy = _mm256_set1_ps(q.y());
+  const __m256 qz = _mm256_set1_ps(q.z());
+  const __m256 limit = _mm256_set1_ps(r2);
+  alignas(32) float d2[8];
+  int found = 0;
+  int k = 0;
+  for (; k + 8 <= count; k += 8) {
+    const __m256 dx = _mm256_sub_ps(_mm256_loadu_ps(xs + k), qx);
+    const __m256 dy = _mm256_sub_ps(_mm256_loadu_ps(ys + k), qy);
+    const __m256 dz = _mm256_sub_ps(_mm256_loadu_ps(zs + k), qz);
+    const __m256 sum = _mm256_add_ps(_mm256_mul_ps(dx, dx),
+                                     _mm256_add_ps(_mm256_mul_ps(dy, dy), _mm256_mul_ps(dz, dz)));
+    unsigned inside = static_cast<unsigned>(_mm256_movemask_ps(_mm256_cmp_ps(sum, limit, _CMP_LE_OQ)));
+    if (inside == 0) continue;
+    _mm256_store_ps(d2, sum);
+    while (inside != 0) {
+      const int lane = __builtin_ctz(inside);
+      inside &= inside - 1;
+      hits[found] = indices[k + lane];
+      hit_d2[found] = d2[lane];
+      ++found;
+    }
+  }
+  done = k;
+  return found;
+}
+#endif
+
+}  // namespace
+
+int PointGrid::within_radius(const Eigen::Vector3f& q, float r2, int begin, int count, int* indices,
+                             float* squared_distances) const {
+  const auto b = static_cast<std::size_t>(begin);
+  int found = 0;
+  int done = 0;
+#ifdef RANKSLAM_GEOMETRY_HAVE_AVX2_GRID
+  if (grid_cpu_has_avx2()) {
+    found = within_radius_avx2(sorted_x_.data() + b, sorted_y_.data() + b, sorted_z_.data() + b,
+                               sorted_.data() + b, q, r2, count, indices, squared_distances, done);
+  }
+#endif
+  for (int k = done; k < count; ++k) {
+    const auto j = b + static_cast<std::size_t>(k);
+    const float dx = sorted_x_[j] - q.x();
+    const float dy = sorted_y_[j] - q.y();
+    const float dz = sorted_z_[j] - q.z();
+    const float d2 = dx * dx + (dy * dy + dz * dz);
+    if (d2 <= r2) {
+      indices[found] = sorted_[j];
+      squared_distances[found] = d2;
+      ++found;
+    }
+  }
+  return found;
 }
 
 int PointGrid::nearest(const Eigen::Vector3f& q, int k, int exclude, int max_ring, int* indices,

@@ -483,15 +483,27 @@ ShotResult ShotEstimator::compute(const Eigen::Vector3f& center,
   vote_bins_portable(arrays, vote_frame, padded_end);
 #endif
 
-  // The scattered votes, one neighbour at a time (bins as exact small integers in floats).
+  // The scattered votes, one neighbour at a time (bins as exact small integers in floats). The
+  // arrays are read through local pointers: the compiler cannot tell that the descriptor's
+  // stores leave the vectors' own pointers alone, and would reload them at every vote.
+  const float* const distance = distance_.data();
+  const float* const cosine_bin = cosine_.data();
+  const float* const cosine_weight = cosine_weight_.data();
+  const float* const radial_bin = radial_.data();
+  const float* const radial_weight = radial_weight_.data();
+  const float* const elevation_bin = elevation_.data();
+  const float* const elevation_weight = elevation_weight_.data();
+  const float* const azimuth_bin = azimuth_.data();
+  const float* const azimuth_weight = azimuth_weight_.data();
+  const float* const own_bin = own_.data();
+  const float* const own_weight = own_weight_.data();
   for (int k = 0; k < count_; ++k) {
-    const auto n = static_cast<std::size_t>(k);
-    if (distance_[n] < 1e-15F) continue;
-    descriptor[static_cast<int>(cosine_[n])] += cosine_weight_[n];
-    descriptor[static_cast<int>(radial_[n])] += radial_weight_[n];
-    descriptor[static_cast<int>(elevation_[n])] += elevation_weight_[n];
-    descriptor[static_cast<int>(azimuth_[n])] += azimuth_weight_[n];
-    descriptor[static_cast<int>(own_[n])] += own_weight_[n];
+    if (distance[k] < 1e-15F) continue;
+    descriptor[static_cast<int>(cosine_bin[k])] += cosine_weight[k];
+    descriptor[static_cast<int>(radial_bin[k])] += radial_weight[k];
+    descriptor[static_cast<int>(elevation_bin[k])] += elevation_weight[k];
+    descriptor[static_cast<int>(azimuth_bin[k])] += azimuth_weight[k];
+    descriptor[static_cast<int>(own_bin[k])] += own_weight[k];
   }
 
   double norm = 0.0;

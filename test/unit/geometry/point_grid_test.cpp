@@ -53,18 +53,47 @@ TEST(PointGrid, RadiusQueryMatchesBruteForce) {
   ASSERT_TRUE(grid.build(points, 0.1F));
   for (int q = 0; q < 2000; q += 37) {
     std::vector<int> found;
-    grid.for_each_in_radius(points[static_cast<std::size_t>(q)], 0.15F, [&](int i, float d2) {
+    const Eigen::Vector3f& centre = points[static_cast<std::size_t>(q)];
+    std::vector<int> visit_order;
+    grid.for_each_in_radius(centre, 0.15F, [&](int i, float d2) {
       EXPECT_LE(d2, 0.15F * 0.15F);
+      // Exactly the squared norm (descriptors built from it must not depend on the CPU).
+      EXPECT_EQ(d2, (points[static_cast<std::size_t>(i)] - centre).squaredNorm());
       found.push_back(i);
     });
+    // Cell by cell, in sorted order within each cell, as the grid lists them.
+    for (const PointGrid::Cell& cell : grid.cells()) {
+      for (int k = cell.start; k < cell.start + cell.count; ++k) {
+        const int i = grid.sorted_indices()[static_cast<std::size_t>(k)];
+        if (std::find(found.begin(), found.end(), i) != found.end()) visit_order.push_back(i);
+      }
+    }
     std::vector<int> expected;
     for (int i = 0; i < 2000; ++i) {
       if ((points[static_cast<std::size_t>(i)] - points[static_cast<std::size_t>(q)]).squaredNorm() <= 0.15F * 0.15F) {
         expected.push_back(i);
       }
     }
+    std::vector<int> found_by_cell = found;
     std::sort(found.begin(), found.end());
     EXPECT_EQ(found, expected);
+    // Within each cell, the visits keep the sorted order.
+    std::vector<int> cell_of(2000, -1);
+    for (std::size_t c = 0; c < grid.cells().size(); ++c) {
+      const PointGrid::Cell& cell = grid.cells()[c];
+      for (int k = cell.start; k < cell.start + cell.count; ++k) {
+        cell_of[static_cast<std::size_t>(grid.sorted_indices()[static_cast<std::size_t>(k)])] = static_cast<int>(c);
+      }
+    }
+    std::vector<int> position(2000, -1);
+    for (std::size_t k = 0; k < visit_order.size(); ++k) position[static_cast<std::size_t>(visit_order[k])] = static_cast<int>(k);
+    for (std::size_t k = 1; k < found_by_cell.size(); ++k) {
+      const int a = found_by_cell[k - 1];
+      const int b = found_by_cell[k];
+      if (cell_of[static_cast<std::size_t>(a)] == cell_of[static_cast<std::size_t>(b)]) {
+        EXPECT_LT(position[static_cast<std::size_t>(a)], position[static_cast<std::size_t>(b)]);
+      }
+    }
   }
 }
 

@@ -5,6 +5,7 @@
 // query touches 27 cells and a few dozen points, which beats a k-d tree's descent for the
 // sampled cloud's sizes, and the build is linear (no sort).
 
+#include <array>
 #include <cstdint>
 #include <span>
 #include <vector>
@@ -49,7 +50,9 @@ class PointGrid {
   [[nodiscard]] int find_cell(std::int32_t x, std::int32_t y, std::int32_t z) const;
   [[nodiscard]] std::int32_t cell_coordinate(float value) const;
 
-  /// Calls visit(index, squared_distance) for every point within radius_m of q (inclusive).
+  /// Calls visit(index, squared_distance) for every point within radius_m of q (inclusive), cell
+  /// by cell (x, y, z ascending) and in sorted_indices() order within a cell. The distance is
+  /// (p − q).squaredNorm().
   template <class Visit>
   void for_each_in_radius(const Eigen::Vector3f& q, float radius_m, Visit&& visit) const {
     const float r2 = radius_m * radius_m;
@@ -59,16 +62,21 @@ class PointGrid {
     const std::int32_t y1 = cell_coordinate(q.y() + radius_m);
     const std::int32_t z0 = cell_coordinate(q.z() - radius_m);
     const std::int32_t z1 = cell_coordinate(q.z() + radius_m);
+    std::array<int, kRadiusChunk> hits{};
+    std::array<float, kRadiusChunk> hit_d2{};
     for (std::int32_t x = x0; x <= x1; ++x) {
       for (std::int32_t y = y0; y <= y1; ++y) {
         for (std::int32_t z = z0; z <= z1; ++z) {
           const int c = find_cell(x, y, z);
           if (c < 0) continue;
           const Cell& cell = cell_list_[static_cast<std::size_t>(c)];
-          for (int k = cell.start; k < cell.start + cell.count; ++k) {
-            const int i = sorted_[static_cast<std::size_t>(k)];
-            const float d2 = (points_[static_cast<std::size_t>(i)] - q).squaredNorm();
-            if (d2 <= r2) visit(i, d2);
+          const int end = cell.start + cell.count;
+          for (int begin = cell.start; begin < end; begin += kRadiusChunk) {
+            const int found = within_radius(q, r2, begin, std::min(kRadiusChunk, end - begin),
+                                            hits.data(), hit_d2.data());
+            for (int h = 0; h < found; ++h) {
+              visit(hits[static_cast<std::size_t>(h)], hit_d2[static_cast<std::size_t>(h)]);
+            }
           }
         }
       }
@@ -92,6 +100,12 @@ class PointGrid {
     std::uint32_t generation = 0;
   };
   [[nodiscard]] std::size_t slot_of(std::int32_t x, std::int32_t y, std::int32_t z) const;
+  /// The points at sorted positions [begin, begin + count) within r2 of q (squared distance
+  /// ≤ r2), in order: their indices and squared distances into the outputs; returns how many.
+  /// From the coordinates kept in sorted order, 8 at a time with AVX2 where the CPU has it.
+  int within_radius(const Eigen::Vector3f& q, float r2, int begin, int count, int* indices,
+                    float* squared_distances) const;
+  static constexpr int kRadiusChunk = 64;
 
   int capacity_ = 0;
   std::span<const Eigen::Vector3f> points_;
@@ -104,6 +118,9 @@ class PointGrid {
   int cell_count_ = 0;
   std::vector<int> point_cell_;
   std::vector<int> sorted_;
+  // The points' coordinates in sorted_ order (8 padding entries at the end), so that a cell's
+  // points are read side by side.
+  std::vector<float> sorted_x_, sorted_y_, sorted_z_;
 };
 
 /// Keeps the k smallest (squared distance, index) pairs seen so far, ascending, by insertion;
