@@ -67,7 +67,6 @@ void BlockImage::reserve(int image_width, int image_height) {
   edge_weight.assign(n, 0.0F);
   first_part.assign(n, -1);
   parts.assign(2 * n, Part{});
-  part_count = 0;
 }
 
 namespace {
@@ -891,11 +890,11 @@ void CloudPreprocessor::split_block(const cv::Mat& depth, int bu, int bv, float 
   for (BlockImage::Part* part : {&near, &far}) {
     if (part->weight > 0.0F) part->mean /= part->weight;
   }
-  const auto first = static_cast<std::size_t>(blocks_.part_count);
+  // Each block has its own two slots, so that blocks can be split on any thread.
+  const std::size_t first = 2 * block;
   blocks_.parts[first] = near;
   blocks_.parts[first + 1] = far;
-  blocks_.first_part[block] = blocks_.part_count;
-  blocks_.part_count += 2;
+  blocks_.first_part[block] = static_cast<std::int32_t>(first);
 }
 
 GeometryStatus CloudPreprocessor::process(const cv::Mat& depth, SampledCloud& cloud) {
@@ -940,37 +939,41 @@ GeometryStatus CloudPreprocessor::process(const cv::Mat& depth, SampledCloud& cl
   // sensor's quantisation) straddles a depth edge: its mean floats between two surfaces.
   const float block_span_per_m =
       static_cast<float>(BlockImage::kBlock) / static_cast<float>(camera_.calibration().fx);
-  blocks_.part_count = 0;
-  for (int bv = 0; bv < blocks_.height; ++bv) {
-    for (int bu = 0; bu < blocks_.width; ++bu) {
-      const std::size_t k = static_cast<std::size_t>(bv) * static_cast<std::size_t>(block_sums_.stride) +
-                            static_cast<std::size_t>(bu);
-      const std::size_t b = blocks_.index(bu, bv);
-      blocks_.weight[b] = 0.0F;
-      blocks_.edge_weight[b] = 0.0F;
-      if (block_sums_.count[k] == 0) continue;
-      const auto count = static_cast<float>(block_sums_.count[k]);
-      const Eigen::Vector3f mean =
-          Eigen::Vector3f(block_sums_.sum_x[k], block_sums_.sum_y[k], block_sums_.sum_z[k]) / count;
-      blocks_.x[b] = mean.x();
-      blocks_.y[b] = mean.y();
-      blocks_.z[b] = mean.z();
-      blocks_.x_min[b] = block_sums_.min_x[k];
-      blocks_.x_max[b] = block_sums_.max_x[k];
-      blocks_.y_min[b] = block_sums_.min_y[k];
-      blocks_.y_max[b] = block_sums_.max_y[k];
-      blocks_.z_min[b] = block_sums_.min_z[k];
-      blocks_.z_max[b] = block_sums_.max_z[k];
-      const float max_span = 6.0F * block_span_per_m * mean.z() + 3e-3F * mean.z() * mean.z();
-      blocks_.first_part[b] = -1;
-      if (block_sums_.max_z[k] - block_sums_.min_z[k] > max_span) {
-        blocks_.edge_weight[b] = count;
-        split_block(depth, bu, bv, 0.5F * (block_sums_.min_z[k] + block_sums_.max_z[k]), b);
-      } else {
-        blocks_.weight[b] = count;
+  // Block rows on whichever thread: each block is written by itself.
+  const auto block_rows = [&](int first_row, int end_row, int /*thread*/) {
+    for (int bv = first_row; bv < end_row; ++bv) {
+      for (int bu = 0; bu < blocks_.width; ++bu) {
+        const std::size_t k = static_cast<std::size_t>(bv) * static_cast<std::size_t>(block_sums_.stride) +
+                              static_cast<std::size_t>(bu);
+        const std::size_t b = blocks_.index(bu, bv);
+        blocks_.weight[b] = 0.0F;
+        blocks_.edge_weight[b] = 0.0F;
+        if (block_sums_.count[k] == 0) continue;
+        const auto count = static_cast<float>(block_sums_.count[k]);
+        const Eigen::Vector3f mean =
+            Eigen::Vector3f(block_sums_.sum_x[k], block_sums_.sum_y[k], block_sums_.sum_z[k]) / count;
+        blocks_.x[b] = mean.x();
+        blocks_.y[b] = mean.y();
+        blocks_.z[b] = mean.z();
+        blocks_.x_min[b] = block_sums_.min_x[k];
+        blocks_.x_max[b] = block_sums_.max_x[k];
+        blocks_.y_min[b] = block_sums_.min_y[k];
+        blocks_.y_max[b] = block_sums_.max_y[k];
+        blocks_.z_min[b] = block_sums_.min_z[k];
+        blocks_.z_max[b] = block_sums_.max_z[k];
+        const float max_span = 6.0F * block_span_per_m * mean.z() + 3e-3F * mean.z() * mean.z();
+        blocks_.first_part[b] = -1;
+        if (block_sums_.max_z[k] - block_sums_.min_z[k] > max_span) {
+          blocks_.edge_weight[b] = count;
+          split_block(depth, bu, bv, 0.5F * (block_sums_.min_z[k] + block_sums_.max_z[k]), b);
+        } else {
+          blocks_.weight[b] = count;
+        }
       }
     }
-  }
+  };
+  constexpr int kBlockRowsPerChunk = 8;
+  parallel::for_chunks(team_, blocks_.height, kBlockRowsPerChunk, block_rows);
 
   // Each voxel's normal on whichever thread, then the voxels with enough support packed in
   // voxel order.

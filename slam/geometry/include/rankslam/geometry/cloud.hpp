@@ -84,8 +84,7 @@ struct BlockImage {
     float weight = 0.0F;
   };
   std::vector<std::int32_t> first_part;  ///< per block: its near part in `parts`, −1 if none
-  std::vector<Part> parts;               ///< near and far part of each depth-edge block
-  int part_count = 0;
+  std::vector<Part> parts;               ///< near and far part of each depth-edge block (2 slots a block)
 
   [[nodiscard]] std::size_t index(int u, int v) const {
     return static_cast<std::size_t>(v) * static_cast<std::size_t>(stride) + static_cast<std::size_t>(u);
