@@ -5,6 +5,7 @@
 #include <cmath>
 #include <numbers>
 #include <random>
+#include <utility>
 #include <vector>
 
 #include <Eigen/Geometry>
@@ -190,6 +191,36 @@ TEST(OrientationMsse, ResidualsAndScoresAgree) {
     EXPECT_NEAR(std::sqrt(r2[static_cast<std::size_t>(i)]), angle, 1e-7);
     EXPECT_NEAR(OrientationModel::score_to_squared_residual(scores[static_cast<std::size_t>(i)]),
                 r2[static_cast<std::size_t>(i)], 1e-9);
+  }
+}
+
+// The one-pass scores are selection_scores value for value (the ranking must not depend on the
+// CPU's vector width), optionally scaled, with an exact count below the bound.
+TEST(OrientationMsse, ScaledSelectionScoresAreTheSelectionScores) {
+  const NormalSet set = make_normals({Eigen::Vector3d::UnitZ(), Eigen::Vector3d::UnitX()}, {0.4, 0.4}, 301, 5.0, 7);
+  OrientationModel model(301);
+  ASSERT_EQ(model.set_normals(set.normals), RobustStatus::kOk);
+  const Eigen::Vector3d h = Eigen::Vector3d(0.3, -0.2, 1.0).normalized();
+  std::vector<double> factors(301);
+  for (int i = 0; i < 301; ++i) factors[static_cast<std::size_t>(i)] = 1.0 + 0.01 * i;
+  std::vector<double> reference(301);
+  std::vector<double> scores(301);
+  for (const bool scaled : {false, true}) {
+    for (const auto& [begin, count] : {std::pair{0, 301}, std::pair{3, 4}, std::pair{10, 7}, std::pair{97, 130}}) {
+      model.selection_scores(h, begin, count, reference.data());
+      if (scaled) {
+        for (int i = 0; i < count; ++i) reference[static_cast<std::size_t>(i)] *= factors[static_cast<std::size_t>(begin + i)];
+      }
+      const double bound = 0.05;
+      const int expected = static_cast<int>(
+          std::count_if(reference.begin(), reference.begin() + count, [&](double v) { return v < bound; }));
+      const int below = model.scaled_selection_scores(h, begin, count, scaled ? factors.data() + begin : nullptr,
+                                                      bound, scores.data());
+      EXPECT_EQ(below, expected);
+      for (int i = 0; i < count; ++i) {
+        ASSERT_EQ(scores[static_cast<std::size_t>(i)], reference[static_cast<std::size_t>(i)]) << begin + i;
+      }
+    }
   }
 }
 

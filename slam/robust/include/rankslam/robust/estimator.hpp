@@ -61,12 +61,12 @@ concept ScoresAreSquaredResiduals = HasSelectionScores<M> && requires {
   requires M::kScoresAreSquaredResiduals;
 };
 
-/// Optional, for ScoresAreSquaredResiduals models: the selection scores already scaled by the
-/// per-point inverse variances (null: unscaled) and counted below a bound, in one pass, with the
-/// same values as selection_scores followed by the scaling.
+/// Optional: the selection scores scaled by the per-point inverse variances (null: unscaled; only
+/// ScoresAreSquaredResiduals models are given any) and counted below a bound, in one pass, with
+/// the same values as selection_scores followed by the scaling.
 template <class M>
 concept HasScaledSelectionScores =
-    ScoresAreSquaredResiduals<M> &&
+    HasSelectionScores<M> &&
     requires(const M& model, const typename M::Params& params, int begin, int count,
              const double* inverse_variances, double bound, double* out) {
       { model.scaled_selection_scores(params, begin, count, inverse_variances, bound, out) }

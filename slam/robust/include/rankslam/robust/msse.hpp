@@ -183,13 +183,14 @@ RobustResult<typename Model::Params> estimate_msse(
   const auto score_below = [&](const Params& hypothesis, int begin, int count, double bound,
                                double* out) {
     if constexpr (HasScaledSelectionScores<Model>) {
-      return model.scaled_selection_scores(
-          hypothesis, begin, count, inverse_variances != nullptr ? inverse_variances + begin : nullptr,
-          bound, out);
-    } else {
-      evaluate(hypothesis, begin, count, out);
-      return detail::count_below(out, count, bound);
+      if (use_scores) {
+        return model.scaled_selection_scores(
+            hypothesis, begin, count, inverse_variances != nullptr ? inverse_variances + begin : nullptr,
+            bound, out);
+      }
     }
+    evaluate(hypothesis, begin, count, out);
+    return detail::count_below(out, count, bound);
   };
 
   // Step 1: least k-th order. least_kth scores a hypothesis into `scratch` and is true, with its
