@@ -227,44 +227,46 @@ int DescriptorMatcher::match(const float* a, int count_a, const float* b, int co
     return -1;
   }
   if (count_a == 0 || count_b == 0) return 0;
-  // A's rows in blocks, one per thread, each with its own best of B's rows; the blocks are
-  // merged in row order so that ties still go to the lower index. Block edges fall on multiples
-  // of the kernels' 4 rows, so every dot product is summed as in one pass.
-  constexpr int kRowAlignment = 4;
+  // A's rows in chunks to whichever thread asks, each thread with its own best of B's rows over
+  // the rows it scanned (which come to it in increasing order, so ties within a thread keep the
+  // lower row); the threads' bests are then merged, ties again to the lower row. Chunk edges fall
+  // on multiples of the kernels' 4 rows, so every dot product is summed as in one pass.
+  constexpr int kRowsPerChunk = 32;  // a multiple of the kernels' 4 rows
   const int threads = parallel::team_size(team_);
-  const int rows_per_block =
-      ((count_a + threads - 1) / threads + kRowAlignment - 1) / kRowAlignment * kRowAlignment;
-  const int blocks = (count_a + rows_per_block - 1) / rows_per_block;
   constexpr float kLowest = -std::numeric_limits<float>::infinity();
   std::fill_n(best_of_a_.begin(), count_a, kLowest);
   std::fill_n(arg_of_a_.begin(), count_a, -1);
-  const auto scan_block = [&](int block, int /*thread*/) {
-    const int first = block * rows_per_block;
-    const int rows = std::min(rows_per_block, count_a - first);
-    const auto b_offset = static_cast<std::ptrdiff_t>(block) * capacity_;
+  for (int thread = 0; thread < threads; ++thread) {
+    const auto b_offset = static_cast<std::ptrdiff_t>(thread) * capacity_;
     std::fill_n(best_of_b_.begin() + b_offset, count_b, kLowest);
     std::fill_n(arg_of_b_.begin() + b_offset, count_b, -1);
+  }
+  const auto scan_rows = [&](int first, int end, int thread) {
+    const auto b_offset = static_cast<std::ptrdiff_t>(thread) * capacity_;
     Best best{best_of_a_.data() + first, arg_of_a_.data() + first, best_of_b_.data() + b_offset,
               arg_of_b_.data() + b_offset, first};
     const float* rows_of_a = a + static_cast<std::ptrdiff_t>(first) * dimension_;
 #ifdef RANKSLAM_GEOMETRY_HAVE_AVX2_KERNEL
     if (use_avx2_) {
-      scan_avx2(rows_of_a, rows, b, count_b, dimension_, best);
+      scan_avx2(rows_of_a, end - first, b, count_b, dimension_, best);
     } else {
-      scan_portable(rows_of_a, rows, b, count_b, dimension_, best);
+      scan_portable(rows_of_a, end - first, b, count_b, dimension_, best);
     }
 #else
-    scan_portable(rows_of_a, rows, b, count_b, dimension_, best);
+    scan_portable(rows_of_a, end - first, b, count_b, dimension_, best);
 #endif
   };
-  parallel::for_each(team_, blocks, scan_block);
-  for (int block = 1; block < blocks; ++block) {
-    const auto b_offset = static_cast<std::ptrdiff_t>(block) * capacity_;
+  parallel::for_chunks(team_, count_a, kRowsPerChunk, scan_rows);
+  for (int thread = 1; thread < threads; ++thread) {
+    const auto b_offset = static_cast<std::size_t>(thread) * static_cast<std::size_t>(capacity_);
     for (int j = 0; j < count_b; ++j) {
       const auto k = static_cast<std::size_t>(j);
-      if (best_of_b_[k + static_cast<std::size_t>(b_offset)] > best_of_b_[k]) {
-        best_of_b_[k] = best_of_b_[k + static_cast<std::size_t>(b_offset)];
-        arg_of_b_[k] = arg_of_b_[k + static_cast<std::size_t>(b_offset)];
+      const int row = arg_of_b_[k + b_offset];
+      if (row < 0) continue;
+      const float similarity = best_of_b_[k + b_offset];
+      if (arg_of_b_[k] < 0 || similarity > best_of_b_[k] || (similarity == best_of_b_[k] && row < arg_of_b_[k])) {
+        best_of_b_[k] = similarity;
+        arg_of_b_[k] = row;
       }
     }
   }

@@ -57,7 +57,7 @@ class DescriptorMatcher {
   parallel::ThreadTeam* team_ = nullptr;
   std::vector<float> best_of_a_;  // best similarity per row of A
   std::vector<int> arg_of_a_;
-  std::vector<float> best_of_b_;  // per block of A's rows: capacity_ values each
+  std::vector<float> best_of_b_;  // per thread of the team: capacity_ values each
   std::vector<int> arg_of_b_;
 };
 

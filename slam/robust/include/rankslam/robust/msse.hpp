@@ -260,36 +260,42 @@ RobustResult<typename Model::Params> estimate_msse(
         }
         counts.evaluated += kept;
       }
-      // Each thread scores a contiguous share and keeps its first least k0-th residual; the
-      // shares are then compared in order, so ties go to the earlier hypothesis as serially.
+      // Chunks of hypotheses go to whichever thread asks (a thread that starts late, or shares
+      // its core, takes fewer). Each thread keeps the least k0-th residual of the hypotheses it
+      // scored, which come to it in increasing order, and bounds its early exits by it; ties go
+      // to the earlier hypothesis within a thread and in the merge, as serially.
       const int hypotheses = counts.evaluated;
-      const int shares = shared->team->size();
-      std::array<double, parallel::ThreadTeam::kMaxThreads> share_kth{};
-      std::array<int, parallel::ThreadTeam::kMaxThreads> share_best{};
-      shared->team->for_each(shares, [&](int share, int thread) {
+      const int threads = shared->team->size();
+      std::array<double, parallel::ThreadTeam::kMaxThreads> thread_kth{};
+      std::array<int, parallel::ThreadTeam::kMaxThreads> thread_best{};
+      thread_kth.fill(std::numeric_limits<double>::infinity());
+      thread_best.fill(-1);
+      constexpr int kHypothesesPerChunk = 16;
+      shared->team->for_chunks(hypotheses, kHypothesesPerChunk, [&](int first, int last, int thread) {
         double* scratch = shared->scores.data() + static_cast<std::ptrdiff_t>(thread) * shared->max_points;
-        const int first = static_cast<int>(static_cast<std::int64_t>(hypotheses) * share / shares);
-        const int last = static_cast<int>(static_cast<std::int64_t>(hypotheses) * (share + 1) / shares);
-        double share_best_kth = std::numeric_limits<double>::infinity();
-        int best_index = -1;
+        double& kth_of_thread = thread_kth[static_cast<std::size_t>(thread)];
+        int& best_of_thread = thread_best[static_cast<std::size_t>(thread)];
         for (int h = first; h < last; ++h) {
           double kth = 0.0;
-          if (least_kth(shared->params[static_cast<std::size_t>(h)], scratch, best_index >= 0, share_best_kth, kth)) {
-            share_best_kth = kth;
-            best_index = h;
+          if (least_kth(shared->params[static_cast<std::size_t>(h)], scratch, best_of_thread >= 0, kth_of_thread, kth)) {
+            kth_of_thread = kth;
+            best_of_thread = h;
           }
         }
-        share_kth[static_cast<std::size_t>(share)] = share_best_kth;
-        share_best[static_cast<std::size_t>(share)] = best_index;
       });
-      for (int share = 0; share < shares; ++share) {
-        const int index = share_best[static_cast<std::size_t>(share)];
+      int best_index = -1;
+      for (int thread = 0; thread < threads; ++thread) {
+        const int index = thread_best[static_cast<std::size_t>(thread)];
         if (index < 0) continue;
-        if (!have_best || share_kth[static_cast<std::size_t>(share)] < best_kth) {
-          best_kth = share_kth[static_cast<std::size_t>(share)];
-          best = shared->params[static_cast<std::size_t>(index)];
-          have_best = true;
+        const double kth = thread_kth[static_cast<std::size_t>(thread)];
+        if (best_index < 0 || kth < best_kth || (kth == best_kth && index < best_index)) {
+          best_kth = kth;
+          best_index = index;
         }
+      }
+      if (best_index >= 0) {
+        best = shared->params[static_cast<std::size_t>(best_index)];
+        have_best = true;
       }
     }
   }
