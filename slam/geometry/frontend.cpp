@@ -171,17 +171,27 @@ GeometryStatus GeometricFrontend::extract(const cv::Mat& depth, KeypointMethod m
 
   double t1 = now_ms();
   times_.cloud_ms = t1 - t0;
+  // The two neighbour grids of the cloud, the keypoints' and SHOT's (cells of the support radius
+  // make each query 2–3 cells a side), are built side by side: each build is a serial pass.
+  const auto radius = static_cast<float>(config_.shot_radius_m);
+  const auto points = cloud_.point_span();
+  const auto normals = cloud_.normal_span();
+  bool support_grid_built = false;
+  parallel::for_each(team_, 2, [&](int task, int /*thread*/) {
+    if (task == 0) {
+      support_grid_built = support_grid_.build(points, radius);
+    } else {
+      detector_.prepare(method, cloud_);
+    }
+  });
   keypoint_count_ = detector_.detect(method, cloud_, keypoints_, status);
   out.keypoint_candidates = detector_.stats().candidates;
   t0 = now_ms();
   times_.keypoints_ms = t0 - t1;
   if (status != GeometryStatus::kOk) return status;
 
-  // SHOT over the sampled cloud: cells of the support radius make each query 2–3 cells a side.
-  const auto radius = static_cast<float>(config_.shot_radius_m);
-  const auto points = cloud_.point_span();
-  const auto normals = cloud_.normal_span();
-  if (!support_grid_.build(points, radius)) return GeometryStatus::kCapacityExceeded;
+  // SHOT over the sampled cloud.
+  if (!support_grid_built) return GeometryStatus::kCapacityExceeded;
   const auto a = static_cast<float>(config_.depth_noise_per_m);
   const auto lateral = static_cast<float>(config_.lateral_sigma_m);
   // Each keypoint's descriptor goes to its own slot, on whichever thread; the described ones are

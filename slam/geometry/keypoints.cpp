@@ -2,6 +2,7 @@
 
 #include <algorithm>
 #include <cmath>
+#include <utility>
 
 #include "fast_math.hpp"
 #include "rankslam/robust/msse.hpp"
@@ -53,8 +54,21 @@ std::string KeypointDetector::configure(const GeometryConfig& config, int max_po
   return {};
 }
 
+void KeypointDetector::prepare(KeypointMethod method, const SampledCloud& cloud) {
+  prepared_for_ = nullptr;
+  if (!configured() || cloud.size > max_points_ || cloud.size < 3) return;
+  if (method != KeypointMethod::kRos && method != KeypointMethod::kIs3d) return;
+  if (grid_.build(cloud.point_span(), 2.0F * cloud.voxel_leaf_m)) prepared_for_ = &cloud;
+}
+
 int KeypointDetector::detect(KeypointMethod method, const SampledCloud& cloud, std::span<int> out,
                              GeometryStatus& status) {
+  // A grid prepared for another cloud (or method) is not used; this one is used once.
+  const SampledCloud* prepared = std::exchange(prepared_for_, nullptr);
+  if (prepared != &cloud || (method != KeypointMethod::kRos && method != KeypointMethod::kIs3d)) {
+    prepared = nullptr;
+  }
+  grid_prepared_ = prepared != nullptr;
   stats_ = KeypointStats{};
   if (!configured()) {
     status = GeometryStatus::kNotConfigured;
@@ -137,7 +151,7 @@ void KeypointDetector::compute_saliency(const SampledCloud& cloud, const std::ui
   const int n = cloud.size;
   const int k = config_.ros_neighbours;
   const float cell_m = 2.0F * cloud.voxel_leaf_m;
-  (void)grid_.build(cloud.point_span(), cell_m);
+  if (!std::exchange(grid_prepared_, false)) (void)grid_.build(cloud.point_span(), cell_m);
   const auto sorted = grid_.sorted_indices();
   // Cells on whichever thread of the team, each writing the saliency of its own points.
   const auto cells = grid_.cells();

@@ -57,6 +57,11 @@ class KeypointDetector {
     return detect(config_.keypoint_method, cloud, out, status);
   }
 
+  /// Optional, per frame, no allocation: builds the neighbour grid that detect() of this cloud
+  /// with this method would build first, so that the caller can run it beside other work (it
+  /// uses no team). The next detect() of the same cloud uses it; any other detect() ignores it.
+  void prepare(KeypointMethod method, const SampledCloud& cloud);
+
   [[nodiscard]] const KeypointStats& stats() const { return stats_; }
   /// ROS saliency θ_i (mean squared normal angle to the N nearest sampled neighbours, rad²) of
   /// every cloud point as computed by the last ROS detection (an IS3D detection ranked by
@@ -76,6 +81,8 @@ class KeypointDetector {
   int max_points_ = 0;
   KeypointStats stats_;
   PointGrid grid_;
+  const SampledCloud* prepared_for_ = nullptr;  // the cloud grid_ was prepared for, if any
+  bool grid_prepared_ = false;                   // this detection's saliency grid is built
   robust::RobustWorkspace workspace_;
   robust::OrientationModel orientation_model_{1};
   parallel::ThreadTeam* team_ = nullptr;
