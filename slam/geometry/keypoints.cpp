@@ -354,16 +354,20 @@ int KeypointDetector::detect_is3d(const SampledCloud& cloud, std::span<int> out,
   const auto end = begin + remaining;
   int first = 0;
   int usable = remaining;
+  // Only the ranks up to the last kept one are needed: the orders below are total (ties by
+  // index), so a partial sort gives those ranks exactly as a full sort would.
   if (by_saliency || config_.is3d_ranking == Is3dRanking::kFarthestFromOrientations) {
     // Descending score, ties by index; is3d_gross_error_fraction of the largest are dropped
     // (none by default: see the parameter).
-    std::sort(begin, end, [](const auto& a, const auto& b) {
-      return a.first > b.first || (a.first == b.first && a.second < b.second);
-    });
     first = std::min(remaining, gross_error_count(remaining, config_.is3d_gross_error_fraction));
     usable = remaining - first;
+    const int ranked = std::min(remaining, first + config_.max_keypoints);
+    std::partial_sort(begin, begin + ranked, end, [](const auto& a, const auto& b) {
+      return a.first > b.first || (a.first == b.first && a.second < b.second);
+    });
   } else {
-    std::sort(begin, end, [](const auto& a, const auto& b) {
+    const int ranked = std::min(remaining, config_.max_keypoints);
+    std::partial_sort(begin, begin + ranked, end, [](const auto& a, const auto& b) {
       return a.first < b.first || (a.first == b.first && a.second < b.second);
     });
   }
