@@ -323,9 +323,20 @@ RobustResult<typename Model::Params> estimate_msse(
   double* sq = workspace.sq_residuals();
   const int* order = workspace.order();
   double sigma_sq = 0.0;
+  // Large sets (IS3D's thousands of normals, each an arc cosine) score on the team, each point
+  // into its own slot: the same values.
+  constexpr int kSegmentChunk = 512;
+  const bool segment_on_team = use_team && n >= 2 * kSegmentChunk;
   const auto segment = [&](const Params& hypothesis) {
-    model.squared_residuals(hypothesis, 0, n, sq);
-    if (inverse_variances != nullptr) detail::scale_values(sq, inverse_variances, n);
+    const auto residuals = [&](int begin, int end, int /*thread*/) {
+      model.squared_residuals(hypothesis, begin, end - begin, sq + begin);
+      if (inverse_variances != nullptr) detail::scale_values(sq + begin, inverse_variances + begin, end - begin);
+    };
+    if (segment_on_team) {
+      shared->team->for_chunks(n, kSegmentChunk, residuals);
+    } else {
+      residuals(0, n, 0);
+    }
     detail::sort_residuals(workspace, n);
     return msse_transition(std::span<const double>(sq, static_cast<std::size_t>(n)), k0, kP,
                            config.transition_factor, &sigma_sq);
