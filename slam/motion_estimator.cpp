@@ -5,6 +5,8 @@
 #include "rankslam/robust/rigid.hpp"
 #include "rankslam/robust/workspace.hpp"
 
+#include <algorithm>
+#include <cmath>
 #include <vector>
 
 namespace rankslam::slam {
@@ -25,7 +27,8 @@ struct MotionEstimator::Impl {
         workspace(capacity),
         source(3, capacity),
         target(3, capacity),
-        refit_weights(max_points) {
+        refit_weights(max_points),
+        normalised_sq(max_points) {
     ransac.inlier_threshold = config.ransac_threshold_m;
     ransac.hypotheses = config.ransac_iterations;
     ransac.seed = static_cast<std::uint64_t>(config.seed);
@@ -33,6 +36,20 @@ struct MotionEstimator::Impl {
     msse.min_inlier_fraction = config.msse_min_inlier_fraction;
     msse.refine_iterations = config.msse_refine_iterations;
     msse.seed = static_cast<std::uint64_t>(config.seed);
+  }
+
+  /// RMS over the k smallest of the residuals under T in units of their noise σ_i (n points).
+  [[nodiscard]] double noise_scale(const Eigen::Isometry3d& T, std::span<const double> sigma_m, int n, int k) {
+    if (sigma_m.empty() || k < 1 || k > n) return 1.0;
+    for (int i = 0; i < n; ++i) {
+      const double sigma = sigma_m[static_cast<std::size_t>(i)];
+      normalised_sq[static_cast<std::size_t>(i)] = (T * source.col(i) - target.col(i)).squaredNorm() / (sigma * sigma);
+    }
+    const auto begin = normalised_sq.begin();
+    std::nth_element(begin, begin + (k - 1), begin + n);
+    double sum = 0.0;
+    for (int i = 0; i < k; ++i) sum += normalised_sq[static_cast<std::size_t>(i)];
+    return std::sqrt(sum / k);
   }
 
   /// Mean distance between where `a` and `b` put the source points.
@@ -51,6 +68,7 @@ struct MotionEstimator::Impl {
   Eigen::Matrix3Xd source;
   Eigen::Matrix3Xd target;
   std::vector<double> refit_weights;
+  std::vector<double> normalised_sq;
   robust::MsseTeamScratch<robust::RigidModel::Params> team;
 };
 
@@ -141,6 +159,7 @@ MotionEstimate MotionEstimator::estimate(std::span<const Eigen::Vector3f> source
       }
     }
   }
+  estimate.noise_scale = impl.noise_scale(estimate.T_target_source, sigma_m, n, estimate.inliers);
   return estimate;
 }
 

@@ -217,7 +217,9 @@ struct SlamConfig {
   double loop_max_correction_deg = 5.0;
   double loop_min_inlier_spread_m = 0.05;
   // Edge information from the inlier count (graph::information_from_matches): the error of a
-  // registration on one match.
+  // registration on one match whose inliers fit as their predicted noise says; a registration
+  // that fits worse has its information divided by its noise scale squared
+  // (SlamLoop::registration_information).
   double graph_match_sigma_m = 0.02;
   double graph_match_sigma_deg = 1.0;
   int graph_iterations = 20;

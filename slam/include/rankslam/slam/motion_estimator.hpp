@@ -16,6 +16,11 @@ struct MotionEstimate {
   /// Maps source points onto target points.
   Eigen::Isometry3d T_target_source = Eigen::Isometry3d::Identity();
   int inliers = 0;
+  /// RMS of the inliers' residuals in units of their predicted noise (the `sigma_m` given to
+  /// estimate()), taken over the `inliers` smallest under the returned motion: about 1 or below
+  /// while the noise model holds, larger when the registration fits worse than its matches'
+  /// noise explains (blur, rolling shutter, a wrong alignment). 1 without predicted noise.
+  double noise_scale = 1.0;
   std::string_view failure_reason;
 };
 

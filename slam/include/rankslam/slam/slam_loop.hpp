@@ -118,6 +118,9 @@ struct FrameResult {
   int features = 0;
   int matches = 0;
   int inliers = 0;
+  /// The registration's noise scale (MotionEstimate::noise_scale): 1 where its inliers fit as
+  /// their predicted noise says, larger where they fit worse. Discounts its pose-graph edge.
+  double noise_scale = 1.0;
   /// Fused mode: each kind's own MSSE inliers among its matches, and the photometric weight
   /// W_P of the combined estimate (W_G = 1 / W_P; ALGORITHMS.md §5).
   int photometric_matches = 0;
@@ -260,6 +263,8 @@ class SlamLoop {
   /// Stores the frame as a key-frame: graph node, sequential edge from the previous key-frame,
   /// then the loop-closure search.
   void store_keyframe(const hal::RgbdFrame& frame, bool have_depth, FrameResult& result);
+  /// Pose-graph information of a registration from its inlier count and noise scale.
+  [[nodiscard]] graph::Matrix6d registration_information(int inliers, double noise_scale) const;
   /// Registers the new key-frame against nearby stored ones; adds accepted closures to the graph.
   void close_loops(int slot, FrameResult& result);
   /// Submits a pending graph and applies a finished optimisation (moving the tracking state by
