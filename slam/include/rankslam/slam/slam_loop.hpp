@@ -157,7 +157,8 @@ struct FrameResult {
 /// Tracking is frame to key-frame: each frame is registered against a reference frame, and
 /// becomes the reference itself once its inliers fall below `reference_min_overlap` of the
 /// reference's features. While a reference holds, errors do not add up frame by frame. When the
-/// reference gives no acceptable registration, the previous frame is tried. When both fail the
+/// reference gives no acceptable registration, or one whose inliers fit far worse than their noise
+/// (`reference_max_noise_scale`), the previous frame is tried. When both fail the
 /// pose is propagated at constant velocity and the reference kept, so the next frame that sees it
 /// snaps back; after a failure the previous frame (at its propagated pose) bridges a lost view.
 ///
