@@ -263,7 +263,8 @@ GeometryStatus GeometricFrontend::correspondences(const GeometricFeatures& previ
 
 FrameRegistration GeometricFrontend::register_frames(const GeometricFeatures& previous,
                                                      const GeometricFeatures& current,
-                                                     const Eigen::Isometry3d& T_previous_current_guess) {
+                                                     const Eigen::Isometry3d& T_previous_current_guess,
+                                                     const IcpPrior& prior) {
   FrameRegistration registration;
   times_.matching_ms = times_.msse_ms = times_.icp_ms = 0.0;
   double t0 = now_ms();
@@ -344,6 +345,7 @@ FrameRegistration GeometricFrontend::register_frames(const GeometricFeatures& pr
     coarse.depth_noise_per_m = static_cast<float>(config_.depth_noise_per_m);
     coarse.noise_floor_m = static_cast<float>(config_.lateral_sigma_m);
   }
+  coarse.prior = prior;  // the fine stage copies it
   IcpResult best;
   RefinementStart start = RefinementStart::kNone;
   if (registration.msse_ok) {

@@ -249,6 +249,15 @@ IcpResult PlaneIcp::refine(const IcpCloud& previous, const IcpCloud& current,
       sum_sq += r * r;
     }
     H = H.selfadjointView<Eigen::Lower>();
+    if (config.prior.information.any()) {
+      // ε = log(T·prior⁻¹) moves to ε + δ under the update exp(δ)·T, to first order.
+      const Eigen::Isometry3d off_prior = T * config.prior.T_previous_current.inverse();
+      const Eigen::AngleAxisd rotation(off_prior.rotation());
+      Eigen::Matrix<double, 6, 1> epsilon;
+      epsilon << rotation.angle() * rotation.axis(), off_prior.translation();
+      H.diagonal() += config.prior.information;
+      g += config.prior.information.cwiseProduct(epsilon);
+    }
     result.inliers = segmentation.inlier_count;
     result.rms_m = std::sqrt(sum_sq / segmentation.inlier_count);
     result.iterations = iteration + 1;

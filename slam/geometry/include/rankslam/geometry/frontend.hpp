@@ -168,9 +168,11 @@ class GeometricFrontend {
   /// Per frame, no allocation: matches, MSSE rigid registration (ALGORITHMS.md §1, §3.7), then
   /// the optional ICP refinement. `T_previous_current_guess` (e.g. constant velocity or wheel
   /// odometry) is ICP's fallback start; ok means a motion was estimated from either start.
+  /// `prior` (optional) holds the ICP where the clouds leave the motion free (IcpConfig::prior).
   FrameRegistration register_frames(
       const GeometricFeatures& previous, const GeometricFeatures& current,
-      const Eigen::Isometry3d& T_previous_current_guess = Eigen::Isometry3d::Identity());
+      const Eigen::Isometry3d& T_previous_current_guess = Eigen::Isometry3d::Identity(),
+      const IcpPrior& prior = IcpPrior{});
 
   /// The sampled cloud and keypoint indices of the last extract() (for tests and tools).
   [[nodiscard]] const SampledCloud& last_cloud() const { return cloud_; }

@@ -26,6 +26,15 @@
 
 namespace rankslam::geometry {
 
+/// A Gaussian prior on the motion ICP refines (e.g. the tracker's prediction).
+struct IcpPrior {
+  Eigen::Isometry3d T_previous_current = Eigen::Isometry3d::Identity();
+  /// Diagonal information of ε = (rotation vector, translation) of T·T_previous_current⁻¹, the
+  /// deviation expressed in the previous frame [rad⁻², m⁻²] (in the residuals' σ units when
+  /// they are weighted); zero: no prior.
+  Eigen::Matrix<double, 6, 1> information = Eigen::Matrix<double, 6, 1>::Zero();
+};
+
 struct IcpConfig {
   int max_iterations = 10;
   /// Current points used at most (evenly strided).
@@ -42,6 +51,11 @@ struct IcpConfig {
   /// of it (0: plain metres, unweighted).
   float depth_noise_per_m = 0.0F;
   float noise_floor_m = 0.001F;
+  /// Each step minimises the residuals plus εᵀ·diag(information)·ε. Where the clouds constrain a
+  /// direction, thousands of residuals outweigh a weak prior; where they do not (one plane leaves
+  /// its in-plane shifts and the turn about its normal free) the prior holds the motion there,
+  /// where the solve would otherwise follow the noise.
+  IcpPrior prior;
 };
 
 struct IcpResult {
