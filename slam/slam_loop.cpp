@@ -1,5 +1,7 @@
 #include "rankslam/slam/slam_loop.hpp"
 
+#include "rankslam/slam/registration_support.hpp"
+
 #include <Eigen/Cholesky>
 #include <Eigen/Eigenvalues>
 #include <Eigen/LU>
@@ -154,6 +156,9 @@ SlamLoop::SlamLoop(const SlamConfig& config, const hal::Calibration& calibration
     if (!error.empty()) throw std::invalid_argument(error);
   }
   loop_candidates_.reserve(static_cast<std::size_t>(config_.keyframe_capacity));
+  const double prior_rad = config_.fused_icp_prior_sigma_deg * M_PI / 180.0;
+  icp_prior_information_ << Eigen::Vector3d::Constant(1.0 / (prior_rad * prior_rad)),
+      Eigen::Vector3d::Constant(1.0 / (config_.fused_icp_prior_sigma_m * config_.fused_icp_prior_sigma_m));
   wheel_window_.resize(static_cast<std::size_t>(std::max(1, config_.wheel_gate_window_frames)));
   const auto capacity = static_cast<std::size_t>(config.orb_features) * 2;
   for (auto& tracked : frames_) {
@@ -246,6 +251,7 @@ Eigen::Vector3f SlamLoop::rolling_shutter_corrected(const Eigen::Vector3f& point
 MotionEstimate SlamLoop::register_frames(const PhotometricFeatures& target, const Velocity& target_velocity,
                                          const PhotometricFeatures& current, const Velocity& current_velocity,
                                          FrameResult& result, const Eigen::Isometry3d& predicted,
+                                         const Eigen::Isometry3d& at_rest,
                                          const geometry::GeometricFeatures* target_geometric,
                                          const geometry::GeometricFeatures* current_geometric) {
   auto stage_start = Clock::now();
@@ -311,7 +317,7 @@ MotionEstimate SlamLoop::register_frames(const PhotometricFeatures& target, cons
   result.times.ms[kMatching] += elapsed_ms(stage_start);
   if (fused) {
     return fused_estimate(*target_geometric, target_velocity, *current_geometric, current_velocity, geometric_count,
-                          result, predicted);
+                          result, predicted, at_rest);
   }
 
   stage_start = Clock::now();
@@ -328,7 +334,8 @@ MotionEstimate SlamLoop::fused_estimate(const geometry::GeometricFeatures& targe
                                         const Velocity& target_velocity,
                                         const geometry::GeometricFeatures& current_geometric,
                                         const Velocity& current_velocity, int geometric_count,
-                                        FrameResult& result, const Eigen::Isometry3d& predicted) {
+                                        FrameResult& result, const Eigen::Isometry3d& predicted,
+                                        const Eigen::Isometry3d& at_rest) {
   auto stage_start = Clock::now();
   const auto photometric_count = static_cast<int>(source_points_.size());
   // 1. Each kind alone: its inlier ratio says how well it fits this scene.
@@ -397,14 +404,37 @@ MotionEstimate SlamLoop::fused_estimate(const geometry::GeometricFeatures& targe
   // Where the photometric kind is weak (plain surfaces), the geometric front-end's ICP refines
   // the estimate on the dense clouds; where it is strong, a refinement that moves the estimate
   // more than a feature registration's error is ICP sliding along a plane and is dropped.
+  // Where the view fixes only part of the motion, the ICP holds a prior in the rest: the feature
+  // estimate when it is one (see SlamConfig::fused_max_noise_scale), else the previous pose. An
+  // estimate that is no registration neither seeds the ICP (a corridor's end wall registered
+  // turned by 180 deg, and ICP from there stayed turned) nor holds it.
   if (config_.fused_icp_below_photometric_inliers > 0 && photometric_inliers < config_.fused_icp_below_photometric_inliers) {
     stage_start = Clock::now();
-    const geometry::FrameRegistration refined =
-        geometric_.register_frames(target_geometric, current_geometric, fused.ok ? fused.T_target_source : predicted);
+    const std::span<const Eigen::Vector3f> all_source(source_points_);
+    const std::span<const Eigen::Vector3f> all_target(target_points_);
+    const std::span<const double> all_sigma(correspondence_sigma_m_);
+    const bool shaped = photometric_inliers >= config_.min_inliers ||
+                        (geometric.ok && inlier_thickness_m(geometric.T_target_source, geometric_source, geometric_target,
+                                                            geometric_sigma) >= config_.fused_min_geometric_thickness_m);
+    const bool registered = fused.ok && fused.inliers >= config_.min_inliers &&
+                            fused.noise_scale <= config_.fused_max_noise_scale && shaped;
+    geometry::IcpPrior prior;
+    prior.T_previous_current = registered ? fused.T_target_source : at_rest;
+    prior.information = icp_prior_information_;
+    const Matrix6d feature_information =
+        registered ? correspondence_information(fused.T_target_source, all_source, all_target, all_sigma) : Matrix6d::Zero();
+    const geometry::FrameRegistration refined = geometric_.register_frames(
+        target_geometric, current_geometric, registered ? fused.T_target_source : predicted, prior);
     if (refined.ok && refined.refined_from != geometry::RefinementStart::kNone) {
       fused.ok = true;
       fused.T_target_source = refined.T_previous_current;
       fused.inliers = std::max(fused.inliers, refined.inliers);
+      fused.icp_inliers = refined.icp_inliers;
+      const auto cloud_count = static_cast<std::size_t>(current_geometric.cloud_count);
+      const double icp_weight = 1.0 / (config_.graph_icp_sigma_m * config_.graph_icp_sigma_m);
+      fused.information = feature_information +
+                          icp_weight * surface_information({current_geometric.cloud_points.data(), cloud_count},
+                                                           {current_geometric.cloud_normals.data(), cloud_count});
       result.inliers = fused.inliers;
       result.icp_refined = true;
     }
@@ -419,7 +449,7 @@ bool SlamLoop::accept(const MotionEstimate& estimate, const Eigen::Isometry3d& T
   std::string_view why;
   if (!estimate.ok) {
     why = estimate.failure_reason;
-  } else if (estimate.inliers < config_.min_inliers) {
+  } else if (estimate.inliers < config_.min_inliers && estimate.icp_inliers < config_.min_icp_inliers) {
     why = "too few inliers";
   } else if (resuming && estimate.inliers < config_.reference_min_overlap * reference_inliers_) {
     why = "too few inliers to resume tracking";
@@ -678,6 +708,7 @@ FrameResult SlamLoop::process(const hal::RgbdFrame& frame, const MotionPrior* pr
     const Eigen::Isometry3d& predicted_step = predicted_motion(prior);
     const Eigen::Isometry3d T_world_predicted = previous.T_world_cam * predicted_step;
     std::string_view reason;
+    accepted_information_.setZero();
     // Fused mode registers on depth alone when the frame has no usable image.
     if (image == nullptr && !fused) reason = "no usable image";
     if (!have_depth) reason = "no usable depth";
@@ -694,11 +725,12 @@ FrameResult SlamLoop::process(const hal::RgbdFrame& frame, const MotionPrior* pr
       if (reference.features.source == source) {
         const MotionEstimate estimate = register_frames(
             reference.features, reference.velocity, tracked.features, tracked.velocity, result,
-            reference.T_world_cam.inverse() * T_world_predicted, fused ? &reference.geometric : nullptr,
-            fused ? &tracked.geometric : nullptr);
+            reference.T_world_cam.inverse() * T_world_predicted, reference.T_world_cam.inverse() * previous.T_world_cam,
+            fused ? &reference.geometric : nullptr, fused ? &tracked.geometric : nullptr);
         if (accept(estimate, reference.T_world_cam, previous.T_world_cam, predicted_step, result.T_world_cam, reason,
                    resuming)) {
           target = &reference;
+          accepted_information_ = estimate.information;
           resumed_tracking_ = resuming;
           // Overlap relative to the inliers the reference had with the first frame registered
           // against it: that count is what full overlap looks like for this scene and image kind.
@@ -718,10 +750,11 @@ FrameResult SlamLoop::process(const hal::RgbdFrame& frame, const MotionPrior* pr
         result.times.ms[kFeatures] += elapsed_ms(stage_start);
         const MotionEstimate estimate = register_frames(
             reference.features, reference.velocity, bridge_, tracked.velocity, result,
-            reference.T_world_cam.inverse() * T_world_predicted, fused ? &reference.geometric : nullptr,
-            fused ? &tracked.geometric : nullptr);
+            reference.T_world_cam.inverse() * T_world_predicted, reference.T_world_cam.inverse() * previous.T_world_cam,
+            fused ? &reference.geometric : nullptr, fused ? &tracked.geometric : nullptr);
         if (accept(estimate, reference.T_world_cam, previous.T_world_cam, predicted_step, result.T_world_cam, reason)) {
           target = &reference;
+          accepted_information_ = estimate.information;
         }
         new_reference = true;  // the following frames need a reference of the new kind
       }
@@ -740,11 +773,13 @@ FrameResult SlamLoop::process(const hal::RgbdFrame& frame, const MotionPrior* pr
         const FrameResult from_reference = result;
         const MotionEstimate estimate =
             register_frames(previous.features, previous.velocity, tracked.features, tracked.velocity, result,
-                            predicted_step, fused ? &previous.geometric : nullptr, fused ? &tracked.geometric : nullptr);
+                            predicted_step, Eigen::Isometry3d::Identity(), fused ? &previous.geometric : nullptr,
+                            fused ? &tracked.geometric : nullptr);
         if ((target == nullptr || estimate.noise_scale < from_reference.noise_scale) &&
             accept(estimate, previous.T_world_cam, previous.T_world_cam, predicted_step, result.T_world_cam,
                    reason)) {
           target = &previous;
+          accepted_information_ = estimate.information;
           new_reference = true;
         } else if (target != nullptr) {
           const StageTimes times = result.times;
@@ -881,6 +916,14 @@ void SlamLoop::store_keyframe(const hal::RgbdFrame& frame, bool have_depth, Fram
       edge.to = keyframe.node;
       edge.T_from_to = T_previous_current;
       edge.information = registration_information(std::max(result.inliers, config_.min_inliers), result.noise_scale);
+      if (accepted_information_.any()) {
+        // Modelled by the registration, with one match's rotation information and a hundredth of
+        // its translation information as a floor: what the surfaces leave free must not make the
+        // graph singular.
+        edge.information = accepted_information_ + graph::information_from_matches(
+                                                       1, config_.graph_match_sigma_deg * M_PI / 180.0,
+                                                       10.0 * config_.graph_match_sigma_m);
+      }
       edge.kind = graph::EdgeKind::kSequential;
       (void)graph_.add_edge(edge);
       add_wheel_edge(previous.node, keyframe.node);
@@ -971,7 +1014,7 @@ void SlamLoop::close_loops(int slot, FrameResult& result) {
     FrameResult scratch;
     const MotionEstimate estimate =
         register_frames(stored.photometric, stored.velocity, current.photometric, current.velocity, scratch, predicted,
-                        with_geometry ? &stored.geometric : nullptr, with_geometry ? &current.geometric : nullptr);
+                        predicted, with_geometry ? &stored.geometric : nullptr, with_geometry ? &current.geometric : nullptr);
     if (!estimate.ok || !estimate.T_target_source.matrix().allFinite()) continue;
     const int photometric_inliers = with_geometry ? scratch.photometric_inliers : scratch.inliers;
     const int geometric_inliers = with_geometry ? scratch.geometric_inliers : 0;

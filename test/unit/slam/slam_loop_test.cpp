@@ -294,6 +294,35 @@ TEST(SlamLoop, AReferenceThatNoLongerFitsGivesWayToThePreviousFrame) {
   EXPECT_TRUE(switched);
 }
 
+// Fused mode facing a blank wall (no image features, one plane in depth) while driving towards
+// it: the dense refinement measures what the plane fixes, the approach, and holds the rest (the
+// shift along the wall, the turn about its normal) at the previous pose. Without that prior the
+// plane's free directions followed the noise, and the descriptor matches of a plane (all alike)
+// seeded it with motions turned by tens of degrees.
+TEST(SlamLoopFused, ApproachingABlankWallTracksTheDistanceAndHoldsWhatTheWallCannotShow) {
+  SlamConfig config;
+  config.mode = Mode::kFused;
+  SlamLoop loop(config, pinhole());
+  constexpr double kStepM = 0.01;
+  FrameResult result;
+  for (int i = 0; i <= 30; ++i) {
+    hal::RgbdFrame frame;
+    frame.sequence = static_cast<std::uint32_t>(i);
+    frame.stamp_s = i / 30.0;
+    frame.rgb = cv::Mat(480, 640, CV_8UC3, cv::Scalar::all(128));
+    frame.depth = cv::Mat(480, 640, CV_16UC1, cv::Scalar((kPlaneDepth_m - kStepM * i) * 5000.0));
+    result = loop.process(frame);
+    if (i > 0) {
+      ASSERT_EQ(result.status, FrameStatus::kTracking) << "frame " << i << ": " << result.failure_reason;
+      EXPECT_TRUE(result.icp_refined) << "frame " << i;
+    }
+  }
+  EXPECT_NEAR(result.T_world_cam.translation().z(), 30 * kStepM, 0.01);
+  EXPECT_NEAR(result.T_world_cam.translation().x(), 0.0, 0.01);
+  EXPECT_NEAR(result.T_world_cam.translation().y(), 0.0, 0.01);
+  EXPECT_LT(Eigen::AngleAxisd(result.T_world_cam.rotation()).angle(), 1.0 * M_PI / 180.0);
+}
+
 INSTANTIATE_TEST_SUITE_P(Modes, SlamLoopModes, ::testing::Values(Mode::kBaseline, Mode::kPhotometric),
                          [](const auto& param_info) { return std::string(to_string(param_info.param)); });
 

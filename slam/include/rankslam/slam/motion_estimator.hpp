@@ -21,6 +21,12 @@ struct MotionEstimate {
   /// while the noise model holds, larger when the registration fits worse than its matches'
   /// noise explains (blur, rolling shutter, a wrong alignment). 1 without predicted noise.
   double noise_scale = 1.0;
+  /// Point-to-plane inliers of the dense refinement that set T_target_source (0: none did).
+  int icp_inliers = 0;
+  /// Information of T_target_source over a small motion in the source frame (see
+  /// registration_support.hpp) where the registration models it; zero: not modelled (the
+  /// inlier count stands for it).
+  Eigen::Matrix<double, 6, 6> information = Eigen::Matrix<double, 6, 6>::Zero();
   std::string_view failure_reason;
 };
 

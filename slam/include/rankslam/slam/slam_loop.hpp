@@ -231,11 +231,13 @@ class SlamLoop {
   /// The feature image of `source`, or null when the frame lacks it.
   [[nodiscard]] const cv::Mat* feature_image(const hal::RgbdFrame& frame, ImageSource source);
   /// Registers `current` against `target`: T_target_current. In fused mode the geometric
-  /// features of both frames join the estimate (fused_estimate). Adds to the matching and
-  /// estimation times.
+  /// features of both frames join the estimate (fused_estimate). `at_rest` is T_target_current
+  /// had the camera not moved since the previous frame. Adds to the matching and estimation
+  /// times.
   [[nodiscard]] MotionEstimate register_frames(const PhotometricFeatures& target, const Velocity& target_velocity,
                                                const PhotometricFeatures& current, const Velocity& current_velocity,
                                                FrameResult& result, const Eigen::Isometry3d& predicted,
+                                               const Eigen::Isometry3d& at_rest,
                                                const geometry::GeometricFeatures* target_geometric = nullptr,
                                                const geometry::GeometricFeatures* current_geometric = nullptr);
   /// ALGORITHMS.md §5 over the photometric correspondences already in source_points_ /
@@ -245,7 +247,8 @@ class SlamLoop {
                                               const Velocity& target_velocity,
                                               const geometry::GeometricFeatures& current_geometric,
                                               const Velocity& current_velocity, int geometric_count,
-                                              FrameResult& result, const Eigen::Isometry3d& predicted);
+                                              FrameResult& result, const Eigen::Isometry3d& predicted,
+                                              const Eigen::Isometry3d& at_rest);
   /// `point`, seen in image row `row`, moved to the frame's mid-exposure camera pose.
   [[nodiscard]] Eigen::Vector3f rolling_shutter_corrected(const Eigen::Vector3f& point, double row,
                                                           const Velocity& velocity) const;
@@ -348,6 +351,8 @@ class SlamLoop {
 
   // Fused mode: the geometric matches of one registration and each correspondence's kind weight.
   geometry::GeometricCorrespondences geometric_matches_;
+  /// The fused ICP refinement's prior strength (fused_icp_prior_sigma_*), as information.
+  Eigen::Matrix<double, 6, 1> icp_prior_information_ = Eigen::Matrix<double, 6, 1>::Zero();
   std::vector<double> kind_weights_;
 
   std::vector<FeatureMatch> matches_;
@@ -363,6 +368,9 @@ class SlamLoop {
   bool resumed_tracking_ = false;
   /// Pose of the last registered frame.
   Eigen::Isometry3d T_world_last_tracked_ = Eigen::Isometry3d::Identity();
+  /// Information of the current frame's accepted registration where it was modelled (see
+  /// MotionEstimate::information): the weight of a sequential edge the frame starts.
+  Eigen::Matrix<double, 6, 6> accepted_information_ = Eigen::Matrix<double, 6, 6>::Zero();
 
   /// Last compared frames' residuals from the prior (ring of wheel_gate_window_frames), for the
   /// window test: slip adds up frame after frame, noise only as its square root.
