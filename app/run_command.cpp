@@ -87,6 +87,7 @@ struct LiveWheels {
   std::condition_variable advanced;  ///< a wheel frame was integrated
   std::optional<WheelPrior> prior;   ///< absent when the calibration has no wheels section
   std::int64_t newest_arrival_ns = 0;  ///< monotonic time the newest wheel frame arrived
+  bool receiving = false;              ///< the output thread's bus is open: frames sent now reach it
   /// Replay through the bus: the wheel frames played from the recording, whose stamps the
   /// received frames take (matched by identifier and data, in order), so that the odometry runs
   /// on the recording's clock as the replay camera's frames do. Empty for a live base.
@@ -126,6 +127,11 @@ void output_thread(const RobotConfig& config, unsigned wheel_can_id, Mailbox& ma
   socketcan::SocketCanBus bus(options);
   // open() was checked by the caller on an identical bus; a failure here is counted as faults.
   (void)bus.open();
+  {
+    std::lock_guard lock(wheels.mutex);
+    wheels.receiving = true;
+  }
+  wheels.advanced.notify_all();
   hal::MonotonicClock clock;
   nav::PoseBroadcaster broadcaster(config.output, bus, clock);
   std::uint64_t seen = 0;
@@ -396,6 +402,14 @@ int run_live(const RunArgs& args) {
 
   std::optional<WheelPlayer> player;
   if (play_wheels) {
+    // A frame played before the output thread's socket is bound never reaches it (the first wheel
+    // frame, whose stamp starts the odometry, went missing that way under load).
+    {
+      std::unique_lock lock(wheels.mutex);
+      if (!wheels.advanced.wait_for(lock, std::chrono::seconds(5), [&] { return wheels.receiving; })) {
+        std::cerr << "warning: the CAN receiver did not start within 5 s; early wheel frames may be missed\n";
+      }
+    }
     player.emplace(recording.can_frames, robot.can_interface, robot.replay_rate);
     if (auto error = player->start(); !error.empty()) {
       std::cerr << "warning: wheel frames are not played: " << error << "\n";
