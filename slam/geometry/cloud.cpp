@@ -1,5 +1,7 @@
 #include "rankslam/geometry/cloud.hpp"
 
+#include "rankslam/parallel/cpu_features.hpp"
+
 #include <algorithm>
 #include <array>
 #include <cmath>
@@ -125,11 +127,6 @@ inline void add_part(const BlockImage::Part& part, const Eigen::Vector3f& center
 }
 
 #ifdef RANKSLAM_GEOMETRY_HAVE_AVX2_NORMALS
-bool normals_cpu_has_avx2() {
-  static const bool has = __builtin_cpu_supports("avx2");
-  return has;
-}
-
 __attribute__((target("avx2"))) float horizontal_sum(__m256 v) {
   const __m128 lo = _mm256_castps256_ps128(v);
   const __m128 hi = _mm256_extractf128_ps(v, 1);
@@ -313,7 +310,7 @@ int organised_normal(const BlockImage& blocks, float fx, const Eigen::Vector3f& 
 
   Moments m;
 #ifdef RANKSLAM_GEOMETRY_HAVE_AVX2_NORMALS
-  const bool avx2 = best_kernel && normals_cpu_has_avx2();
+  const bool avx2 = best_kernel && parallel::cpu_has_avx2();
 #else
   const bool avx2 = false;
   (void)best_kernel;
@@ -650,7 +647,7 @@ bool CloudPreprocessor::voxelise_rows(const cv::Mat& depth, float leaf_m, int ro
   const auto min_m = static_cast<float>(config_.min_depth_m);
   const auto max_m = static_cast<float>(config_.max_depth_m);
 #ifdef RANKSLAM_GEOMETRY_HAVE_AVX2_NORMALS
-  const bool avx2 = normals_cpu_has_avx2();
+  const bool avx2 = parallel::cpu_has_avx2();
 #endif
   const RowPoints row_points{band.row_x.data(), band.row_y.data(), band.row_z.data(),
                              band.row_cell_x.data(), band.row_cell_y.data(), band.row_cell_z.data()};
@@ -841,7 +838,7 @@ void CloudPreprocessor::BlockSums::add_row(const float* x, const float* y, const
   const std::size_t first = static_cast<std::size_t>(block_row) * static_cast<std::size_t>(stride);
   int done = 0;
 #ifdef RANKSLAM_GEOMETRY_HAVE_AVX2_NORMALS
-  if (normals_cpu_has_avx2()) {
+  if (parallel::cpu_has_avx2()) {
     // Whole groups of 8 blocks that lie inside the row.
     done = add_row_avx2(x, y, z, width / kBlock, sum_x.data() + first, sum_y.data() + first,
                         sum_z.data() + first, min_x.data() + first, min_y.data() + first,

@@ -1,5 +1,7 @@
 #include "rankslam/geometry/matching.hpp"
 
+#include "rankslam/parallel/cpu_features.hpp"
+
 #include <algorithm>
 #include <cmath>
 #include <limits>
@@ -183,17 +185,13 @@ __attribute__((target("avx2,fma"))) void scan_avx2(const float* a, int na, const
   }
 }
 
-bool cpu_has_avx2_fma() {
-  static const bool has = __builtin_cpu_supports("avx2") && __builtin_cpu_supports("fma");
-  return has;
-}
 #endif
 
 }  // namespace
 
 bool DescriptorMatcher::cpu_has_avx2() {
 #ifdef RANKSLAM_GEOMETRY_HAVE_AVX2_KERNEL
-  return cpu_has_avx2_fma();
+  return parallel::cpu_has_avx2_fma();
 #else
   return false;
 #endif

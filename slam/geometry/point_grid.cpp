@@ -1,5 +1,7 @@
 #include "rankslam/geometry/point_grid.hpp"
 
+#include "rankslam/parallel/cpu_features.hpp"
+
 #include <algorithm>
 #include <cmath>
 #include <cstdlib>
@@ -109,11 +111,6 @@ bool PointGrid::build(std::span<const Eigen::Vector3f> points, float cell_m) {
 namespace {
 
 #ifdef RANKSLAM_GEOMETRY_HAVE_AVX2_GRID
-bool grid_cpu_has_avx2() {
-  static const bool has = __builtin_cpu_supports("avx2");
-  return has;
-}
-
 // PointGrid::within_radius 8 points at a time (AVX2, chosen at run time): each squared distance
 // as Eigen's squaredNorm of a 3-vector sums it, x² + (y² + z²), without FMA, so the same values.
 // Returns the hits of the whole blocks of 8; `done` is how many points those covered.
@@ -159,7 +156,7 @@ int PointGrid::within_radius(const Eigen::Vector3f& q, float r2, int begin, int 
   int found = 0;
   int done = 0;
 #ifdef RANKSLAM_GEOMETRY_HAVE_AVX2_GRID
-  if (grid_cpu_has_avx2()) {
+  if (parallel::cpu_has_avx2()) {
     found = within_radius_avx2(sorted_x_.data() + b, sorted_y_.data() + b, sorted_z_.data() + b,
                                sorted_.data() + b, q, r2, count, indices, squared_distances, done);
   }

@@ -1,5 +1,7 @@
 #include "rankslam/geometry/shot.hpp"
 
+#include "rankslam/parallel/cpu_features.hpp"
+
 #include <algorithm>
 #include <array>
 #include <cmath>
@@ -322,8 +324,7 @@ __attribute__((target("avx2"))) void vote_bins_avx2(const VoteArrays& v, const V
 
 bool ShotEstimator::cpu_has_avx2() {
 #ifdef RANKSLAM_GEOMETRY_HAVE_AVX2_SHOT
-  static const bool has = __builtin_cpu_supports("avx2");
-  return has;
+  return parallel::cpu_has_avx2();
 #else
   return false;
 #endif

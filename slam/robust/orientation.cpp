@@ -1,5 +1,7 @@
 #include "rankslam/robust/orientation.hpp"
 
+#include "rankslam/parallel/cpu_features.hpp"
+
 #include <algorithm>
 #include <cmath>
 
@@ -87,11 +89,6 @@ void OrientationModel::selection_scores(const Params& direction, int begin, int 
 namespace {
 
 #ifdef RANKSLAM_ROBUST_HAVE_AVX2_ORIENTATION
-bool orientation_cpu_has_avx2() {
-  static const bool has = __builtin_cpu_supports("avx2");
-  return has;
-}
-
 // OrientationModel::scaled_selection_scores 4 normals at a time (AVX2, chosen at run time):
 // 1 − ((d_x·n_x + d_y·n_y) + d_z·n_z) as Eigen evaluates selection_scores' expression, without
 // FMA, so the same values. Returns the count below `bound` of the whole blocks of 4; `done` is
@@ -129,7 +126,7 @@ int OrientationModel::scaled_selection_scores(const Params& direction, int begin
   int done = 0;
   int below = 0;
 #ifdef RANKSLAM_ROBUST_HAVE_AVX2_ORIENTATION
-  if (orientation_cpu_has_avx2()) {
+  if (parallel::cpu_has_avx2()) {
     below = orientation_scores_avx2(normals_.col(0).data() + begin, normals_.col(1).data() + begin,
                                     normals_.col(2).data() + begin, direction, count,
                                     inverse_variances, bound, out, done);

@@ -1,5 +1,7 @@
 #include "rankslam/robust/rigid.hpp"
 
+#include "rankslam/parallel/cpu_features.hpp"
+
 #include <algorithm>
 #include <array>
 #include <cmath>
@@ -360,11 +362,6 @@ void RigidModel::selection_scores(const Params& T_t_s, int begin, int count, dou
 namespace {
 
 #ifdef RANKSLAM_ROBUST_HAVE_AVX2_SCORES
-bool scores_cpu_has_avx2() {
-  static const bool has = __builtin_cpu_supports("avx2");
-  return has;
-}
-
 // RigidModel::scaled_selection_scores, 8 points at a time (AVX2, chosen at run time): the float
 // expression of selection_scores with its operations in the same order (no FMA), widened to
 // double and scaled as there, so the same values. Returns the count below `bound`; `done` is
@@ -423,7 +420,7 @@ int RigidModel::scaled_selection_scores(const Params& T_t_s, int begin, int coun
   int done = 0;
   int below = 0;
 #ifdef RANKSLAM_ROBUST_HAVE_AVX2_SCORES
-  if (scores_cpu_has_avx2()) {
+  if (parallel::cpu_has_avx2()) {
     const Eigen::Matrix3f r = T_t_s.linear().cast<float>();
     const Eigen::Vector3f t = T_t_s.translation().cast<float>();
     below = scaled_scores_avx2(src_f_.col(0).data() + begin, src_f_.col(1).data() + begin,
