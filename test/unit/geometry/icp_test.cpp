@@ -1,19 +1,13 @@
 #include "rankslam/geometry/icp.hpp"
 
+#include "synthetic_scene.hpp"
+
 #include <gtest/gtest.h>
 
 #include <vector>
 
 namespace rankslam::geometry {
 namespace {
-
-hal::CameraCalibration camera() {
-  hal::CameraCalibration calibration;
-  calibration.fx = calibration.fy = 500.0;
-  calibration.cx = 319.5;
-  calibration.cy = 239.5;
-  return calibration;
-}
 
 // A wall facing the camera at `depth_m`, sampled every 4 cm, with its normal towards the camera
 // and each point's pixel.
@@ -46,7 +40,7 @@ IcpConfig plain_config() {
 // residuals unchanged. The prior decides those, the data the rest.
 TEST(PlaneIcpPrior, OnOnePlaneTheDataFixTheDistanceAndThePriorTheShiftAlongIt) {
   PlaneIcp icp;
-  ASSERT_TRUE(icp.configure(camera(), 2000).empty());
+  ASSERT_TRUE(icp.configure(testing::test_calibration(), 2000).empty());
   const Wall previous(1.5F, icp);
   // The camera moved 2 cm towards the wall: the current points are 2 cm nearer.
   const Wall current(1.48F, icp);
