@@ -915,7 +915,6 @@ void SlamLoop::store_keyframe(const hal::RgbdFrame& frame, bool have_depth, Fram
       edge.from = previous.node;
       edge.to = keyframe.node;
       edge.T_from_to = T_previous_current;
-      edge.information = registration_information(std::max(result.inliers, config_.min_inliers), result.noise_scale);
       if (accepted_information_.any()) {
         // Modelled by the registration, with one match's rotation information and a hundredth of
         // its translation information as a floor: what the surfaces leave free must not make the
@@ -923,6 +922,8 @@ void SlamLoop::store_keyframe(const hal::RgbdFrame& frame, bool have_depth, Fram
         edge.information = accepted_information_ + graph::information_from_matches(
                                                        1, config_.graph_match_sigma_deg * M_PI / 180.0,
                                                        10.0 * config_.graph_match_sigma_m);
+      } else {
+        edge.information = registration_information(std::max(result.inliers, config_.min_inliers), result.noise_scale);
       }
       edge.kind = graph::EdgeKind::kSequential;
       (void)graph_.add_edge(edge);
