@@ -156,6 +156,8 @@ SlamLoop::SlamLoop(const SlamConfig& config, const hal::Calibration& calibration
     if (!error.empty()) throw std::invalid_argument(error);
   }
   loop_candidates_.reserve(static_cast<std::size_t>(config_.keyframe_capacity));
+  // One key-frame adds at most loop_max_candidates closures; the log holds many key-frames' worth.
+  closure_log_.resize(static_cast<std::size_t>(std::max(kClosureLogMinCapacity, 4 * config_.loop_max_candidates)));
   const double prior_rad = config_.fused_icp_prior_sigma_deg * M_PI / 180.0;
   icp_prior_information_ << Eigen::Vector3d::Constant(1.0 / (prior_rad * prior_rad)),
       Eigen::Vector3d::Constant(1.0 / (config_.fused_icp_prior_sigma_m * config_.fused_icp_prior_sigma_m));
@@ -892,6 +894,7 @@ void SlamLoop::store_keyframe(const hal::RgbdFrame& frame, bool have_depth, Fram
   keyframe_store_.occupy(slot);
   StoredKeyframe& keyframe = keyframe_store_.slot(slot);
   keyframe.sequence = ++keyframe_sequence_;
+  keyframe.stamp_s = frame.stamp_s;
   keyframe.T_world_cam = result.T_world_cam;
   keyframe.velocity = current_velocity_;
   if (current_photometric_ != nullptr) {
@@ -1062,11 +1065,24 @@ void SlamLoop::close_loops(int slot, FrameResult& result) {
     if (!graph_.add_edge(edge)) continue;
     ++stored.loop_closures;
     ++keyframe_store_.slot(slot).loop_closures;
+    LoopClosure& logged = closure_log_[static_cast<std::size_t>(loop_closures_) % closure_log_.size()];
+    logged.stored_stamp_s = stored.stamp_s;
+    logged.current_stamp_s = current.stamp_s;
+    logged.T_stored_current = edge.T_from_to;
+    logged.photometric_inliers = photometric_inliers;
+    logged.geometric_inliers = geometric_inliers;
+    logged.threshold = loop_threshold_.value();
     loop_threshold_.add(photometric_inliers, geometric_inliers);
     ++loop_closures_;
     result.loop_closure = true;
     graph_pending_ = true;
   }
+}
+
+const LoopClosure* SlamLoop::loop_closure(int index) const {
+  const int capacity = static_cast<int>(closure_log_.size());
+  if (index < 0 || index >= loop_closures_ || index < loop_closures_ - capacity) return nullptr;
+  return &closure_log_[static_cast<std::size_t>(index % capacity)];
 }
 
 void SlamLoop::run_backend(FrameResult& result) {

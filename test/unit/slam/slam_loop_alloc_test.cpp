@@ -115,6 +115,10 @@ struct CountedRun {
   int tracked = 0;
   int keyframes = 0;
   int loop_closures = 0;
+  /// Accepted closures whose log entry was gone when read after their frame, or did not name
+  /// that frame as the new key-frame, an earlier one as the stored one, and inliers that pass ε.
+  int closures_not_logged = 0;
+  int closures_logged_wrong = 0;
   int graphs_applied = 0;
   int retired_keyframes = 0;
   /// At the frames where a graph was applied (and the frame stored no key-frame): the largest
@@ -154,6 +158,7 @@ CountedRun run(SlamLoop& loop, const std::vector<hal::RgbdFrame>& frames, int wa
   }
   const int retired_before = loop.retired_keyframes();
   std::optional<FrameResult> previous;
+  int logged_closures = loop.loop_closures();
   {
     const CountAllocations count;
     for (int i = warm_up; i < warm_up + counted; ++i) {
@@ -174,6 +179,16 @@ CountedRun run(SlamLoop& loop, const std::vector<hal::RgbdFrame>& frames, int wa
       out.tracked += result.status == FrameStatus::kTracking ? 1 : 0;
       out.keyframes += result.keyframe ? 1 : 0;
       out.loop_closures += result.loop_closure ? 1 : 0;
+      for (int index = logged_closures; index < loop.loop_closures(); ++index) {
+        const LoopClosure* closure = loop.loop_closure(index);
+        if (closure == nullptr) {
+          ++out.closures_not_logged;
+        } else if (closure->current_stamp_s != input.stamp_s || !(closure->stored_stamp_s < input.stamp_s) ||
+                   closure->photometric_inliers + closure->geometric_inliers < closure->threshold) {
+          ++out.closures_logged_wrong;
+        }
+      }
+      logged_closures = loop.loop_closures();
       out.graphs_applied += result.graph_applied ? 1 : 0;
       if (!result.graph_applied && !result.map_correction.isApprox(Eigen::Isometry3d::Identity(), 0.0)) {
         ++out.corrections_without_graph;
@@ -238,6 +253,9 @@ void expect_steady_state_without_allocations(Mode mode, const std::vector<hal::R
   EXPECT_GT(counted.keyframes, 20);
   EXPECT_GT(counted.retired_keyframes, 0);
   EXPECT_GT(counted.loop_closures, 0);
+  // Every closure is in the loop's log, read after its frame without allocating.
+  EXPECT_EQ(counted.closures_not_logged, 0);
+  EXPECT_EQ(counted.closures_logged_wrong, 0);
   EXPECT_GT(counted.graphs_applied, 0);
   std::printf("%s: %d map corrections checked, the largest %.4f m; largest mismatch with the optimised key-frames "
               "%.2e m\n",

@@ -32,6 +32,8 @@ struct StoredKeyframe {
   std::uint32_t generation = 0;
   /// Order of creation: tells the most recent key-frames apart.
   std::int64_t sequence = 0;
+  /// The frame's capture time (hal::RgbdFrame::stamp_s).
+  double stamp_s = 0.0;
   /// Camera pose: the tracking estimate, replaced by the optimised one.
   Eigen::Isometry3d T_world_cam = Eigen::Isometry3d::Identity();
   /// Distance travelled by the camera (sum of key-frame to key-frame translations) when stored.

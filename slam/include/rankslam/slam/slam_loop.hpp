@@ -151,6 +151,18 @@ struct FrameResult {
   StageTimes times;
 };
 
+/// An accepted loop closure: the stored key-frame and the new one it was registered with, and
+/// the relative pose the registration measured (the pose-graph edge).
+struct LoopClosure {
+  double stored_stamp_s = 0.0;
+  double current_stamp_s = 0.0;
+  Eigen::Isometry3d T_stored_current = Eigen::Isometry3d::Identity();
+  int photometric_inliers = 0;
+  int geometric_inliers = 0;
+  /// The adaptive threshold ε the inliers passed.
+  double threshold = 0.0;
+};
+
 /// The per-frame SLAM loop: one call per RGB-D frame returns its pose and status. Everything it
 /// needs is allocated at construction.
 ///
@@ -192,6 +204,11 @@ class SlamLoop {
   [[nodiscard]] const PointMap& map() const { return map_; }
   [[nodiscard]] int keyframes() const { return keyframes_; }
   [[nodiscard]] int loop_closures() const { return loop_closures_; }
+  /// The index-th accepted loop closure (0: the first), or null once it has left the log (the
+  /// last kClosureLogMinCapacity or 4·loop_max_candidates are kept, whichever is more: read
+  /// them after each frame to see every one).
+  [[nodiscard]] const LoopClosure* loop_closure(int index) const;
+  static constexpr int kClosureLogMinCapacity = 64;
   /// Key-frames retired from the full store.
   [[nodiscard]] int retired_keyframes() const { return retired_keyframes_; }
   /// The adaptive loop-closure threshold ε now.
@@ -417,6 +434,8 @@ class SlamLoop {
   bool synchronous_backend_ = false;
   /// Candidate slots and their distances for one loop-closure search (set-up sized).
   std::vector<std::pair<double, int>> loop_candidates_;
+  /// The latest accepted closures, by index modulo the size (set-up sized).
+  std::vector<LoopClosure> closure_log_;
 };
 
 }  // namespace rankslam::slam
