@@ -90,6 +90,22 @@ double median_of(std::vector<double> values) {
   return 0.5 * (lower + upper);
 }
 
+/// The largest gap allowed between a stamp and its nearest ground-truth stamp: `requested`, or
+/// for 0 evaluate_rpe.py's rule, twice the median interval of the (sorted, ≥ 2 poses) truth.
+double gt_difference_or_default(const SortedTrajectory& truth, double requested_s) {
+  if (requested_s != 0.0) return requested_s;
+  std::vector<double> intervals_s(truth.stamps_s.size() - 1);
+  for (std::size_t k = 0; k + 1 < truth.stamps_s.size(); ++k) {
+    intervals_s[k] = truth.stamps_s[k + 1] - truth.stamps_s[k];
+  }
+  return 2.0 * median_of(std::move(intervals_s));
+}
+
+/// Angle through the quaternion (atan2): accurate near zero, where acos((trace-1)/2) is not.
+double rotation_angle_deg(const Eigen::Isometry3d& pose) {
+  return Eigen::AngleAxisd(Eigen::Quaterniond(pose.linear())).angle() * 180.0 / std::numbers::pi;
+}
+
 }  // namespace
 
 ErrorStats compute_error_stats(std::span<const double> errors) {
@@ -187,14 +203,7 @@ Result<RpeResult> compute_rpe(const Trajectory& ground_truth, const Trajectory& 
   }
   if (est.stamps_s.size() < 2) return Result<RpeResult>::failure("estimate has fewer than 2 poses");
 
-  double max_gt_difference_s = options.max_gt_difference_s;
-  if (max_gt_difference_s == 0.0) {
-    std::vector<double> intervals_s(truth.stamps_s.size() - 1);
-    for (std::size_t k = 0; k + 1 < truth.stamps_s.size(); ++k) {
-      intervals_s[k] = truth.stamps_s[k + 1] - truth.stamps_s[k];
-    }
-    max_gt_difference_s = 2.0 * median_of(std::move(intervals_s));
-  }
+  const double max_gt_difference_s = gt_difference_or_default(truth, options.max_gt_difference_s);
 
   RpeResult result;
   result.delta_s = options.delta_s;
@@ -211,8 +220,7 @@ Result<RpeResult> compute_rpe(const Trajectory& ground_truth, const Trajectory& 
       continue;
     }
     const Eigen::Isometry3d truth_motion = truth.poses[g0]->inverse() * *truth.poses[g1];
-    const Eigen::Isometry3d est_motion = est.poses[i]->inverse() * *est.poses[j];
-    const Eigen::Isometry3d error = truth_motion.inverse() * est_motion;
+    const Eigen::Isometry3d error = truth_motion.inverse() * (est.poses[i]->inverse() * *est.poses[j]);
 
     RpePair pair;
     pair.stamp_est_0_s = stamp_est_0_s;
@@ -220,9 +228,7 @@ Result<RpeResult> compute_rpe(const Trajectory& ground_truth, const Trajectory& 
     pair.stamp_gt_0_s = truth.stamps_s[g0];
     pair.stamp_gt_1_s = truth.stamps_s[g1];
     pair.translation_m = error.translation().norm();
-    // Angle through the quaternion (atan2): accurate near zero, where acos((trace-1)/2) is not.
-    pair.rotation_deg =
-        Eigen::AngleAxisd(Eigen::Quaterniond(error.linear())).angle() * 180.0 / std::numbers::pi;
+    pair.rotation_deg = rotation_angle_deg(error);
     result.pairs.push_back(pair);
   }
   if (result.pairs.empty()) {
@@ -241,6 +247,40 @@ Result<RpeResult> compute_rpe(const Trajectory& ground_truth, const Trajectory& 
   result.translation_m_per_s = compute_error_stats(translation_m_per_s);
   result.rotation_deg_per_s = compute_error_stats(rotation_deg_per_s);
   return Result<RpeResult>::success(std::move(result));
+}
+
+Result<std::vector<RelativePoseError>> compute_relative_pose_errors(const Trajectory& ground_truth,
+                                                                   std::span<const StampedRelativePose> measured,
+                                                                   double max_gt_difference_s) {
+  using Errors = std::vector<RelativePoseError>;
+  if (!(max_gt_difference_s >= 0.0) || !std::isfinite(max_gt_difference_s)) {
+    return Result<Errors>::failure("max_gt_difference_s must be >= 0, not " + std::to_string(max_gt_difference_s));
+  }
+  if (const std::string error = non_finite_pose(ground_truth, "ground truth"); !error.empty()) {
+    return Result<Errors>::failure(error);
+  }
+  const SortedTrajectory truth = sort_unique(ground_truth);
+  if (truth.stamps_s.size() < 2) return Result<Errors>::failure("ground truth has fewer than 2 poses");
+  const double max_gap_s = gt_difference_or_default(truth, max_gt_difference_s);
+  Errors errors(measured.size());
+  for (std::size_t k = 0; k < measured.size(); ++k) {
+    const StampedRelativePose& m = measured[k];
+    if (!std::isfinite(m.stamp_from_s) || !std::isfinite(m.stamp_to_s) || !m.T_from_to.matrix().allFinite()) continue;
+    const std::size_t g0 = closest_index(truth.stamps_s, m.stamp_from_s);
+    const std::size_t g1 = closest_index(truth.stamps_s, m.stamp_to_s);
+    if (std::abs(truth.stamps_s[g0] - m.stamp_from_s) > max_gap_s ||
+        std::abs(truth.stamps_s[g1] - m.stamp_to_s) > max_gap_s) {
+      continue;
+    }
+    const Eigen::Isometry3d error = (truth.poses[g0]->inverse() * *truth.poses[g1]).inverse() * m.T_from_to;
+    RelativePoseError& e = errors[k];
+    e.has_ground_truth = true;
+    e.stamp_gt_from_s = truth.stamps_s[g0];
+    e.stamp_gt_to_s = truth.stamps_s[g1];
+    e.translation_m = error.translation().norm();
+    e.rotation_deg = rotation_angle_deg(error);
+  }
+  return Result<Errors>::success(std::move(errors));
 }
 
 }  // namespace rankslam::eval

@@ -160,6 +160,15 @@ TEST(Cli, SimulatedCorridorLoopReplays) {
   EXPECT_NE(slurp(out / "report.json").find("\"frames\": 90"), std::string::npos);
 }
 
+// Lines of a file that are neither empty nor comments.
+double count_data_lines(const fs::path& file) {
+  std::ifstream in(file);
+  std::string line;
+  int count = 0;
+  while (std::getline(in, line)) count += !line.empty() && line[0] != '#' ? 1 : 0;
+  return count;
+}
+
 // A number in report.json; NaN when the key is absent or null.
 double report_number(const std::string& report, const std::string& key) {
   const std::string needle = "\"" + key + "\": ";
@@ -180,9 +189,15 @@ TEST(Cli, DefaultFusedReplayOfFr1RpyHeadStaysWithinTwoAndAHalfCentimetres) {
   const std::string report = slurp(out / "report.json");
   EXPECT_NE(report.find("\"mode\": \"fused\""), std::string::npos) << report;
   const double ate = report_number(report, "ate_rmse_m");
-  std::printf("fr1_rpy_head, fused (default settings): ATE %.4f m, %g loop closures\n", ate,
-              report_number(report, "loop_closures"));
+  std::printf("fr1_rpy_head, fused (default settings): ATE %.4f m, %g loop closures, %g false, worst %.3f m %.2f deg\n",
+              ate, report_number(report, "loop_closures"), report_number(report, "false_loop_closures"),
+              report_number(report, "loop_closure_max_error_m"), report_number(report, "loop_closure_max_error_deg"));
   EXPECT_LE(ate, 0.025);
+  // Every closure is checked against the ground truth, and none joins the wrong places.
+  EXPECT_GT(report_number(report, "loop_closures"), 0.0);
+  EXPECT_EQ(report_number(report, "loop_closures_checked"), report_number(report, "loop_closures"));
+  EXPECT_EQ(report_number(report, "false_loop_closures"), 0.0);
+  EXPECT_EQ(count_data_lines(out / "loop_closures.csv"), report_number(report, "loop_closures"));
 }
 
 TEST(Cli, GeometricModeTracksPlainZigzagPanelsWherePhotometricFails) {
@@ -234,6 +249,11 @@ TEST(Cli, FusedModeTracksTextureOnlyStructureOnlyAndMixedScenes) {
     EXPECT_NE(fused.find("\"mode\": \"fused\""), std::string::npos);
     EXPECT_LE(ate, 0.02) << scene;
     EXPECT_EQ(report_number(fused, "failed_frames"), 0.0) << scene;
+    // No closure that joins the wrong places (null where none was accepted).
+    EXPECT_EQ(report_number(fused, "loop_closures_checked"), report_number(fused, "loop_closures")) << scene;
+    if (report_number(fused, "loop_closures") > 0.0) {
+      EXPECT_EQ(report_number(fused, "false_loop_closures"), 0.0) << scene;
+    }
   }
   // The flat wall defeats the geometric features alone.
   const std::string geometric = replay_report("poster-wall", "geometric");

@@ -100,6 +100,32 @@ struct RpeResult {
                                             const Trajectory& estimate,
                                             const RpeOptions& options = {});
 
+/// A relative pose measured between two stamps, e.g. a loop closure between a stored key-frame
+/// and a new one.
+struct StampedRelativePose {
+  double stamp_from_s = 0.0;
+  double stamp_to_s = 0.0;
+  Eigen::Isometry3d T_from_to = Eigen::Isometry3d::Identity();
+};
+
+/// How far one measured relative pose is from the ground truth's motion between its stamps.
+struct RelativePoseError {
+  /// False when either stamp has no ground-truth pose within the allowed gap (no figures then).
+  bool has_ground_truth = false;
+  double stamp_gt_from_s = 0.0;
+  double stamp_gt_to_s = 0.0;
+  double translation_m = 0.0;
+  double rotation_deg = 0.0;
+};
+
+/// For each measurement, E = (Q_from⁻¹ Q_to)⁻¹ · T_from_to with Q the ground-truth pose nearest
+/// each stamp (the lookup and the error of compute_rpe): |t(E)| and angle(E). A stamp farther
+/// than max_gt_difference_s from every ground-truth stamp leaves its measurement without figures
+/// (0: twice the median ground-truth interval, as compute_rpe). Fails when the ground truth has
+/// fewer than 2 poses or a pose that is not finite, or the option is out of range.
+[[nodiscard]] Result<std::vector<RelativePoseError>> compute_relative_pose_errors(
+    const Trajectory& ground_truth, std::span<const StampedRelativePose> measured, double max_gt_difference_s = 0.0);
+
 struct EvalOptions {
   AteOptions ate;
   RpeOptions rpe;
