@@ -21,6 +21,25 @@ void for_each_inlier(const Eigen::Isometry3d& T_target_source, std::span<const E
 
 }  // namespace
 
+Matrix6d adjoint(const Eigen::Isometry3d& T) {
+  const Eigen::Matrix3d R = T.rotation();
+  const Eigen::Vector3d t = T.translation();
+  Eigen::Matrix3d t_cross;
+  t_cross << 0.0, -t.z(), t.y(), t.z(), 0.0, -t.x(), -t.y(), t.x(), 0.0;
+  Matrix6d result = Matrix6d::Zero();
+  result.topLeftCorner<3, 3>() = R;
+  result.bottomLeftCorner<3, 3>() = t_cross * R;
+  result.bottomRightCorner<3, 3>() = R;
+  return result;
+}
+
+Matrix6d step_prior_information(const Eigen::Isometry3d& T_target_prior, const Eigen::Isometry3d& T_frame_current,
+                                const Eigen::Matrix<double, 6, 1>& step_information) {
+  // ξ_frame = Ad(T_frame_current)·ξ and ξ = Ad(M⁻¹)·ε.
+  const Matrix6d to_step = adjoint(T_frame_current) * adjoint(T_target_prior.inverse());
+  return to_step.transpose() * step_information.asDiagonal() * to_step;
+}
+
 double inlier_thickness_m(const Eigen::Isometry3d& T_target_source, std::span<const Eigen::Vector3f> source,
                           std::span<const Eigen::Vector3f> target, std::span<const double> sigma_m) {
   Eigen::Vector3d sum = Eigen::Vector3d::Zero();

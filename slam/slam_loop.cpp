@@ -87,19 +87,6 @@ Vector6d log_motion(const Eigen::Isometry3d& motion) {
   return xi;
 }
 
-// Adjoint of a pose on ξ = (rotation vector, translation): conjugating a small motion by T.
-Matrix6d adjoint_of(const Eigen::Isometry3d& T) {
-  const Eigen::Matrix3d R = T.rotation();
-  const Eigen::Vector3d t = T.translation();
-  Eigen::Matrix3d t_cross;
-  t_cross << 0.0, -t.z(), t.y(), t.z(), 0.0, -t.x(), -t.y(), t.x(), 0.0;
-  Matrix6d adjoint = Matrix6d::Zero();
-  adjoint.topLeftCorner<3, 3>() = R;
-  adjoint.bottomLeftCorner<3, 3>() = t_cross * R;
-  adjoint.bottomRightCorner<3, 3>() = R;
-  return adjoint;
-}
-
 double mahalanobis_sq(const Vector6d& residual, const Matrix6d& covariance) {
   const Eigen::LDLT<Matrix6d> factor(covariance);
   if (factor.info() != Eigen::Success) return std::numeric_limits<double>::infinity();
@@ -126,7 +113,7 @@ MotionPrior camera_motion_prior(double x_m, double y_m, double yaw_rad, const Ei
   base_jacobian(4, 1) = 1.0;
   base_jacobian(3, 2) = y_m;
   base_jacobian(4, 2) = -x_m;
-  const Eigen::Matrix<double, 6, 3> jacobian = adjoint_of(T_cam_base) * base_jacobian;
+  const Eigen::Matrix<double, 6, 3> jacobian = adjoint(T_cam_base) * base_jacobian;
   prior.covariance = jacobian * planar_covariance * jacobian.transpose();
   return prior;
 }
@@ -422,7 +409,13 @@ MotionEstimate SlamLoop::fused_estimate(const geometry::GeometricFeatures& targe
                             fused.noise_scale <= config_.fused_max_noise_scale && shaped;
     geometry::IcpPrior prior;
     prior.T_previous_current = registered ? fused.T_target_source : at_rest;
-    prior.information = icp_prior_information_;
+    // At rest, the step is the robot base's (through the camera mount): a base turning in place
+    // swings the camera on its lever arm, 15 cm on the corridor robot, whose turns came out
+    // 30-45 % short while the camera itself was held still. A feature estimate's error is the
+    // camera's. Without a mount (identity) the two are the same.
+    prior.information = step_prior_information(prior.T_previous_current,
+                                               registered ? Eigen::Isometry3d::Identity() : T_base_cam_,
+                                               icp_prior_information_);
     const Matrix6d feature_information =
         registered ? correspondence_information(fused.T_target_source, all_source, all_target, all_sigma) : Matrix6d::Zero();
     const geometry::FrameRegistration refined = geometric_.register_frames(
@@ -949,8 +942,8 @@ void SlamLoop::accumulate_wheel_motion(const MotionPrior* prior) {
   }
   // Both covariances are of a small motion applied on the left in the earlier frame:
   // exp(ξ_a)·A · exp(ξ_b)·B = exp(ξ_a + Ad(A)·ξ_b)·A·B to first order.
-  const Matrix6d adjoint = adjoint_of(wheel_since_keyframe_);
-  wheel_since_keyframe_covariance_ += adjoint * prior->covariance * adjoint.transpose();
+  const Matrix6d to_keyframe = adjoint(wheel_since_keyframe_);
+  wheel_since_keyframe_covariance_ += to_keyframe * prior->covariance * to_keyframe.transpose();
   wheel_since_keyframe_ = rigid(wheel_since_keyframe_ * prior->T_previous_current);
 }
 
@@ -959,8 +952,8 @@ void SlamLoop::add_wheel_edge(int from_node, int to_node) {
   // The graph's error sits on the right, in the later key-frame: Σ_right = Ad(T⁻¹)·Σ_left·Ad(T⁻¹)ᵀ.
   // Motion a planar base cannot measure (roll, pitch, height) has no wheel variance; the floor
   // keeps the information finite there.
-  const Matrix6d adjoint = adjoint_of(wheel_since_keyframe_.inverse());
-  Matrix6d covariance = adjoint * wheel_since_keyframe_covariance_ * adjoint.transpose();
+  const Matrix6d to_current = adjoint(wheel_since_keyframe_.inverse());
+  Matrix6d covariance = to_current * wheel_since_keyframe_covariance_ * to_current.transpose();
   const double floor_rad = config_.graph_wheel_floor_deg * M_PI / 180.0;
   covariance.diagonal().head<3>().array() += floor_rad * floor_rad;
   covariance.diagonal().tail<3>().array() += config_.graph_wheel_floor_m * config_.graph_wheel_floor_m;

@@ -255,8 +255,8 @@ IcpResult PlaneIcp::refine(const IcpCloud& previous, const IcpCloud& current,
       const Eigen::AngleAxisd rotation(off_prior.rotation());
       Eigen::Matrix<double, 6, 1> epsilon;
       epsilon << rotation.angle() * rotation.axis(), off_prior.translation();
-      H.diagonal() += config.prior.information;
-      g += config.prior.information.cwiseProduct(epsilon);
+      H += config.prior.information;
+      g += config.prior.information * epsilon;
     }
     result.inliers = segmentation.inlier_count;
     result.rms_m = std::sqrt(sum_sq / segmentation.inlier_count);

@@ -55,7 +55,7 @@ TEST(PlaneIcpPrior, OnOnePlaneTheDataFixTheDistanceAndThePriorTheShiftAlongIt) {
     config.prior.T_previous_current.translation() = Eigen::Vector3d(prior_shift_m, 0.0, 0.0);
     // Unweighted residuals: the information is in units of one point's (1 m⁻²); a hundredth of
     // a point's is nothing next to the wall's 1 200 points, yet decides where they say nothing.
-    config.prior.information << Eigen::Vector3d::Constant(1e-2), Eigen::Vector3d::Constant(1e-2);
+    config.prior.information = Eigen::Matrix<double, 6, 6>::Identity() * 1e-2;
     const IcpResult result = icp.refine(previous.cloud(), current.cloud(), start, config);
     ASSERT_TRUE(result.ok) << "prior shift " << prior_shift_m;
     EXPECT_NEAR(result.T_previous_current.translation().z(), 0.02, 1e-4) << "prior shift " << prior_shift_m;

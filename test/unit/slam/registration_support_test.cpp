@@ -4,6 +4,7 @@
 
 #include <Eigen/Eigenvalues>
 
+#include <cmath>
 #include <vector>
 
 namespace rankslam::slam {
@@ -79,6 +80,80 @@ TEST(RegistrationSupport, SurfaceInformationLeavesFreeWhatTheSurfacesDoNotFix) {
   EXPECT_GT(eigen.eigenvalues()(1), 1e-2);
   EXPECT_NEAR(std::abs(eigen.eigenvectors().col(0)(5)), 1.0, 1e-6);
   EXPECT_EQ(surface_information({}, {}).norm(), 0.0);
+}
+
+// The deviation PlaneIcp's prior is given: ε = log(T·M⁻¹), rotation vector then translation.
+Eigen::Matrix<double, 6, 1> icp_prior_deviation(const Eigen::Isometry3d& T, const Eigen::Isometry3d& M) {
+  const Eigen::Isometry3d off = T * M.inverse();
+  const Eigen::AngleAxisd rotation(off.rotation());
+  Eigen::Matrix<double, 6, 1> epsilon;
+  epsilon << rotation.angle() * rotation.axis(), off.translation();
+  return epsilon;
+}
+
+double prior_cost(const Eigen::Isometry3d& T, const Eigen::Isometry3d& M, const Matrix6d& information) {
+  const Eigen::Matrix<double, 6, 1> epsilon = icp_prior_deviation(T, M);
+  return epsilon.dot(information * epsilon);
+}
+
+Eigen::Isometry3d turn_about(const Eigen::Vector3d& axis, double angle_deg) {
+  Eigen::Isometry3d turn = Eigen::Isometry3d::Identity();
+  turn.linear() = Eigen::AngleAxisd(angle_deg * M_PI / 180.0, axis.normalized()).toRotationMatrix();
+  return turn;
+}
+
+// 1° and 1 cm per step, as the fused ICP's prior.
+Eigen::Matrix<double, 6, 1> one_degree_one_centimetre() {
+  const double rad = M_PI / 180.0;
+  Eigen::Matrix<double, 6, 1> information;
+  information << Eigen::Vector3d::Constant(1.0 / (rad * rad)), Eigen::Vector3d::Constant(1e4);
+  return information;
+}
+
+TEST(RegistrationSupport, AdjointMapsASmallMotionIntoTheFrameAPoseMapsFrom) {
+  Eigen::Isometry3d T = turn_about({0.3, -1.0, 0.2}, 40.0);
+  T.translation() = Eigen::Vector3d(0.4, -0.2, 1.5);
+  Eigen::Matrix<double, 6, 1> xi;
+  xi << 1e-4, -2e-4, 3e-4, 2e-4, 1e-4, -3e-4;
+  Eigen::Isometry3d small = turn_about(xi.head<3>(), xi.head<3>().norm() * 180.0 / M_PI);
+  small.translation() = xi.tail<3>();
+  const Eigen::Matrix<double, 6, 1> mapped = icp_prior_deviation(T * small * T.inverse(), Eigen::Isometry3d::Identity());
+  EXPECT_LT((mapped - adjoint(T) * xi).norm(), 1e-7) << mapped.transpose();
+}
+
+// Against a target 20 cm behind the prior's pose (a key-frame reference), a turn about the
+// camera costs the turn alone; the diagonal put on ε directly charges a translation as well.
+TEST(RegistrationSupport, StepPriorChargesATurnAboutTheCameraAsATurnWhereverTheTargetIs) {
+  Eigen::Isometry3d M = Eigen::Isometry3d::Identity();
+  M.translation() = Eigen::Vector3d(0.0, 0.0, 0.2);
+  const Eigen::Isometry3d turned = M * turn_about(Eigen::Vector3d::UnitY(), 1.0);
+  const Eigen::Matrix<double, 6, 1> strength = one_degree_one_centimetre();
+  const double step_cost =
+      prior_cost(turned, M, step_prior_information(M, Eigen::Isometry3d::Identity(), strength));
+  EXPECT_NEAR(step_cost, 1.0, 1e-3);  // one sigma of rotation
+  const Matrix6d on_epsilon = strength.asDiagonal();
+  EXPECT_GT(prior_cost(turned, M, on_epsilon), 1.1);  // 3.5 mm read as translation: 1 + 0.12
+}
+
+// A wheeled base turning in place swings a camera mounted ahead of its axis: at rest in the base
+// frame that costs the turn alone, held in the camera frame it costs the swing as well; a
+// camera that slides forward costs the same in both.
+TEST(RegistrationSupport, StepPriorInTheBaseFrameLetsTheCameraSwingOnItsMount) {
+  Eigen::Isometry3d T_base_cam = Eigen::Isometry3d::Identity();
+  T_base_cam.linear() = Eigen::Quaterniond(0.5, -0.5, 0.5, -0.5).toRotationMatrix();  // optical → base axes
+  T_base_cam.translation() = Eigen::Vector3d(0.15, 0.0, 0.5);
+  const Eigen::Isometry3d M = Eigen::Isometry3d::Identity();
+  const Eigen::Matrix<double, 6, 1> strength = one_degree_one_centimetre();
+  const Matrix6d base = step_prior_information(M, T_base_cam, strength);
+  const Matrix6d camera = step_prior_information(M, Eigen::Isometry3d::Identity(), strength);
+  const Eigen::Isometry3d swing = T_base_cam.inverse() * turn_about(Eigen::Vector3d::UnitZ(), 2.0) * T_base_cam;
+  EXPECT_NEAR(swing.translation().norm(), 0.15 * 2.0 * M_PI / 180.0, 1e-4);  // 5.2 mm
+  EXPECT_NEAR(prior_cost(swing, M, base), 4.0, 4e-3);
+  EXPECT_GT(prior_cost(swing, M, camera), 4.2);
+  Eigen::Isometry3d forward = Eigen::Isometry3d::Identity();
+  forward.translation() = Eigen::Vector3d(0.0, 0.0, 0.01);
+  EXPECT_NEAR(prior_cost(forward, M, base), 1.0, 1e-9);
+  EXPECT_NEAR(prior_cost(forward, M, camera), 1.0, 1e-9);
 }
 
 }  // namespace

@@ -204,7 +204,9 @@ struct SlamConfig {
   // along it). Otherwise the prior is the previous frame's pose: what the view cannot see is
   // taken to stand still. (Constant velocity there instead turned one wrongly registered step
   // into a drift without end: corridor loop seeds 1 and 2, ATE 1.39 and 1.31 m against 0.21 and
-  // 0.24 m.) fused_icp_prior_sigma_* is the prior's strength per frame.
+  // 0.24 m.) fused_icp_prior_sigma_* is the prior's strength on the step from its pose: the
+  // camera's for a feature estimate, the robot base's at rest (through the calibration's
+  // T_base_cam, so that a base turning in place may swing the camera on its mount).
   double fused_icp_prior_sigma_m = 0.01;
   double fused_icp_prior_sigma_deg = 1.0;
   double fused_max_noise_scale = 2.0;

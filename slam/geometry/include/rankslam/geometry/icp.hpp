@@ -29,10 +29,10 @@ namespace rankslam::geometry {
 /// A Gaussian prior on the motion ICP refines (e.g. the tracker's prediction).
 struct IcpPrior {
   Eigen::Isometry3d T_previous_current = Eigen::Isometry3d::Identity();
-  /// Diagonal information of ε = (rotation vector, translation) of T·T_previous_current⁻¹, the
-  /// deviation expressed in the previous frame [rad⁻², m⁻²] (in the residuals' σ units when
+  /// Information (symmetric) of ε = (rotation vector, translation) of T·T_previous_current⁻¹,
+  /// the deviation expressed in the previous frame [rad⁻², m⁻²] (in the residuals' σ units when
   /// they are weighted); zero: no prior.
-  Eigen::Matrix<double, 6, 1> information = Eigen::Matrix<double, 6, 1>::Zero();
+  Eigen::Matrix<double, 6, 6> information = Eigen::Matrix<double, 6, 6>::Zero();
 };
 
 struct IcpConfig {
