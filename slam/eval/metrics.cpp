@@ -106,6 +106,26 @@ double rotation_angle_deg(const Eigen::Isometry3d& pose) {
   return Eigen::AngleAxisd(Eigen::Quaterniond(pose.linear())).angle() * 180.0 / std::numbers::pi;
 }
 
+/// A motion measured between two stamps against the ground truth's motion between the poses
+/// nearest them: E = (Q_0⁻¹·Q_1)⁻¹·measured (Sturm et al., IROS 2012), |t(E)| and angle(E).
+/// No figures when either stamp is more than max_gap_s from its nearest ground-truth stamp.
+RelativePoseError error_against_truth(const SortedTrajectory& truth, double stamp_0_s, double stamp_1_s,
+                                      const Eigen::Isometry3d& measured, double max_gap_s) {
+  RelativePoseError result;
+  const std::size_t g0 = closest_index(truth.stamps_s, stamp_0_s);
+  const std::size_t g1 = closest_index(truth.stamps_s, stamp_1_s);
+  if (std::abs(truth.stamps_s[g0] - stamp_0_s) > max_gap_s || std::abs(truth.stamps_s[g1] - stamp_1_s) > max_gap_s) {
+    return result;
+  }
+  const Eigen::Isometry3d error = (truth.poses[g0]->inverse() * *truth.poses[g1]).inverse() * measured;
+  result.has_ground_truth = true;
+  result.stamp_gt_from_s = truth.stamps_s[g0];
+  result.stamp_gt_to_s = truth.stamps_s[g1];
+  result.translation_m = error.translation().norm();
+  result.rotation_deg = rotation_angle_deg(error);
+  return result;
+}
+
 }  // namespace
 
 ErrorStats compute_error_stats(std::span<const double> errors) {
@@ -213,22 +233,17 @@ Result<RpeResult> compute_rpe(const Trajectory& ground_truth, const Trajectory& 
     if (j == n - 1) continue;  // evaluate_rpe.py's end-of-trajectory rule
     const double stamp_est_0_s = est.stamps_s[i];
     const double stamp_est_1_s = est.stamps_s[j];
-    const std::size_t g0 = closest_index(truth.stamps_s, stamp_est_0_s);
-    const std::size_t g1 = closest_index(truth.stamps_s, stamp_est_1_s);
-    if (std::abs(truth.stamps_s[g0] - stamp_est_0_s) > max_gt_difference_s ||
-        std::abs(truth.stamps_s[g1] - stamp_est_1_s) > max_gt_difference_s) {
-      continue;
-    }
-    const Eigen::Isometry3d truth_motion = truth.poses[g0]->inverse() * *truth.poses[g1];
-    const Eigen::Isometry3d error = truth_motion.inverse() * (est.poses[i]->inverse() * *est.poses[j]);
+    const RelativePoseError error = error_against_truth(
+        truth, stamp_est_0_s, stamp_est_1_s, est.poses[i]->inverse() * *est.poses[j], max_gt_difference_s);
+    if (!error.has_ground_truth) continue;
 
     RpePair pair;
     pair.stamp_est_0_s = stamp_est_0_s;
     pair.stamp_est_1_s = stamp_est_1_s;
-    pair.stamp_gt_0_s = truth.stamps_s[g0];
-    pair.stamp_gt_1_s = truth.stamps_s[g1];
-    pair.translation_m = error.translation().norm();
-    pair.rotation_deg = rotation_angle_deg(error);
+    pair.stamp_gt_0_s = error.stamp_gt_from_s;
+    pair.stamp_gt_1_s = error.stamp_gt_to_s;
+    pair.translation_m = error.translation_m;
+    pair.rotation_deg = error.rotation_deg;
     result.pairs.push_back(pair);
   }
   if (result.pairs.empty()) {
@@ -266,19 +281,7 @@ Result<std::vector<RelativePoseError>> compute_relative_pose_errors(const Trajec
   for (std::size_t k = 0; k < measured.size(); ++k) {
     const StampedRelativePose& m = measured[k];
     if (!std::isfinite(m.stamp_from_s) || !std::isfinite(m.stamp_to_s) || !m.T_from_to.matrix().allFinite()) continue;
-    const std::size_t g0 = closest_index(truth.stamps_s, m.stamp_from_s);
-    const std::size_t g1 = closest_index(truth.stamps_s, m.stamp_to_s);
-    if (std::abs(truth.stamps_s[g0] - m.stamp_from_s) > max_gap_s ||
-        std::abs(truth.stamps_s[g1] - m.stamp_to_s) > max_gap_s) {
-      continue;
-    }
-    const Eigen::Isometry3d error = (truth.poses[g0]->inverse() * *truth.poses[g1]).inverse() * m.T_from_to;
-    RelativePoseError& e = errors[k];
-    e.has_ground_truth = true;
-    e.stamp_gt_from_s = truth.stamps_s[g0];
-    e.stamp_gt_to_s = truth.stamps_s[g1];
-    e.translation_m = error.translation().norm();
-    e.rotation_deg = rotation_angle_deg(error);
+    errors[k] = error_against_truth(truth, m.stamp_from_s, m.stamp_to_s, m.T_from_to, max_gap_s);
   }
   return Result<Errors>::success(std::move(errors));
 }
