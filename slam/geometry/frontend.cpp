@@ -346,6 +346,7 @@ FrameRegistration GeometricFrontend::register_frames(const GeometricFeatures& pr
     coarse.noise_floor_m = static_cast<float>(config_.lateral_sigma_m);
   }
   coarse.prior = prior;  // the fine stage copies it
+  coarse.prior_crossover = config_.icp_prior_crossover;
   IcpResult best;
   RefinementStart start = RefinementStart::kNone;
   if (registration.msse_ok) {

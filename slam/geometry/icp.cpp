@@ -4,6 +4,7 @@
 #include <cmath>
 
 #include <Eigen/Cholesky>
+#include <Eigen/Eigenvalues>
 
 #include "rankslam/robust/msse.hpp"
 #include "rankslam/robust/scalar.hpp"
@@ -201,6 +202,22 @@ int PlaneIcp::count_within(const IcpCloud& previous, const IcpCloud& current,
   return within;
 }
 
+Eigen::Matrix<double, 6, 6> prior_where_data_are_weak(const Eigen::Matrix<double, 6, 6>& data_information,
+                                                      const Eigen::Matrix<double, 6, 6>& prior_information,
+                                                      double crossover) {
+  if (!(crossover > 0.0)) return prior_information;
+  // H v = λ P v with Vᵀ P V = I: in the coordinates y = V⁻¹ ε the prior is I and the data diag(λ).
+  // The prior kept is P V diag(τ / (τ + λ)) Vᵀ P (V⁻ᵀ = P V).
+  const Eigen::GeneralizedSelfAdjointEigenSolver<Eigen::Matrix<double, 6, 6>> split(data_information,
+                                                                                     prior_information);
+  if (split.info() != Eigen::Success) return prior_information;
+  const Eigen::Matrix<double, 6, 6> PV = prior_information * split.eigenvectors();
+  Eigen::Matrix<double, 6, 1> kept;
+  for (int k = 0; k < 6; ++k) kept(k) = crossover / (crossover + std::max(split.eigenvalues()(k), 0.0));
+  const Eigen::Matrix<double, 6, 6> information = PV * kept.asDiagonal() * PV.transpose();
+  return 0.5 * (information + information.transpose());
+}
+
 IcpResult PlaneIcp::refine(const IcpCloud& previous, const IcpCloud& current,
                            const Eigen::Isometry3d& initial, const IcpConfig& config) {
   IcpResult result;
@@ -255,8 +272,10 @@ IcpResult PlaneIcp::refine(const IcpCloud& previous, const IcpCloud& current,
       const Eigen::AngleAxisd rotation(off_prior.rotation());
       Eigen::Matrix<double, 6, 1> epsilon;
       epsilon << rotation.angle() * rotation.axis(), off_prior.translation();
-      H += config.prior.information;
-      g += config.prior.information * epsilon;
+      const Eigen::Matrix<double, 6, 6> information = prior_where_data_are_weak(H, config.prior.information,
+                                                                               config.prior_crossover);
+      H += information;
+      g += information * epsilon;
     }
     result.inliers = segmentation.inlier_count;
     result.rms_m = std::sqrt(sum_sq / segmentation.inlier_count);

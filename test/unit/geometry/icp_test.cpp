@@ -72,5 +72,47 @@ TEST(PlaneIcpPrior, OnOnePlaneTheDataFixTheDistanceAndThePriorTheShiftAlongIt) {
   EXPECT_NEAR(result.T_previous_current.translation().z(), 0.02, 1e-3);
 }
 
+// A prior that disagrees with the data where they measure the motion wins a share of it when
+// taken whole (the least squares meet between them); kept only where the data are weak, it
+// leaves the measured distance to the data and still holds the shift along the wall.
+TEST(PlaneIcpPrior, KeptWhereTheDataAreWeakAPriorNoLongerPullsWhereTheyMeasure) {
+  PlaneIcp icp;
+  ASSERT_TRUE(icp.configure(testing::test_calibration(), 2000).empty());
+  const Wall previous(1.5F, icp);
+  const Wall current(1.48F, icp);
+  IcpConfig config = plain_config();
+  config.prior.T_previous_current = Eigen::Isometry3d::Identity();
+  config.prior.T_previous_current.translation() = Eigen::Vector3d(0.03, 0.0, -0.2);
+  // A hundredth of the wall's 1 200 points along the normal, and all there is along the wall.
+  config.prior.information = Eigen::Matrix<double, 6, 6>::Identity() * 12.0;
+
+  config.prior_crossover = 0.0;
+  const IcpResult whole = icp.refine(previous.cloud(), current.cloud(), Eigen::Isometry3d::Identity(), config);
+  ASSERT_TRUE(whole.ok);
+  // (1 200 · 0.02 − 12 · 0.2) / 1 212 = 0.0178 m.
+  EXPECT_NEAR(whole.T_previous_current.translation().z(), 0.0178, 5e-4);
+
+  config.prior_crossover = 1.0;
+  const IcpResult kept = icp.refine(previous.cloud(), current.cloud(), Eigen::Isometry3d::Identity(), config);
+  ASSERT_TRUE(kept.ok);
+  EXPECT_NEAR(kept.T_previous_current.translation().z(), 0.02, 1e-4);
+  EXPECT_NEAR(kept.T_previous_current.translation().x(), 0.03, 1e-3);
+}
+
+// Along a direction where the data carry λ times the prior's information the prior keeps
+// τ/(τ+λ) of its own; where they carry none it is whole.
+TEST(PlaneIcpPrior, PriorIsKeptInProportionToHowWeakTheDataAre) {
+  Eigen::Matrix<double, 6, 6> data = Eigen::Matrix<double, 6, 6>::Zero();
+  data(5, 5) = 300.0;  // the data measure z alone
+  data(0, 0) = 1.0;
+  const Eigen::Matrix<double, 6, 6> prior = Eigen::Matrix<double, 6, 6>::Identity() * 3.0;
+  const Eigen::Matrix<double, 6, 6> kept = prior_where_data_are_weak(data, prior, 1.0);
+  EXPECT_NEAR(kept(5, 5), 3.0 * 1.0 / (1.0 + 100.0), 1e-9);
+  EXPECT_NEAR(kept(0, 0), 3.0 * 1.0 / (1.0 + 1.0 / 3.0), 1e-9);
+  EXPECT_NEAR(kept(3, 3), 3.0, 1e-9);
+  EXPECT_NEAR(kept(3, 5), 0.0, 1e-9);
+  EXPECT_LT((prior_where_data_are_weak(data, prior, 0.0) - prior).norm(), 1e-12);
+}
+
 }  // namespace
 }  // namespace rankslam::geometry

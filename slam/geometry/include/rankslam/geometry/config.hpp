@@ -205,6 +205,9 @@ struct GeometryConfig {
   /// more associations within 2.5 × the better RMS wins. 0: MSSE's estimate is the only start
   /// (the guess only when MSSE fails).
   int icp_guess_fallback = 1;
+  /// IcpConfig::prior_crossover: a caller's prior holds a direction with weight τ/(τ+λ), λ the
+  /// data's information there over the prior's. 0: the whole prior everywhere.
+  double icp_prior_crossover = 1.0;
 
   /// Seed of the random choices (IS3D hypotheses, MSSE samples): equal seeds, equal results.
   int seed = 1;
@@ -274,6 +277,8 @@ struct GeometryConfig {
           "largest surface variation of a point in fine ICP (0: no limit)");
     visit("icp_guess_fallback", icp_guess_fallback, 0, 1, "",
           "also start ICP from the motion guess unless MSSE's estimate is close to it");
+    visit("icp_prior_crossover", icp_prior_crossover, 0.0, 1e6, "",
+          "data-to-prior information ratio at which an ICP prior's hold on a direction halves (0: whole prior)");
     visit("seed", seed, 0, 2147483647, "", "random seed: equal seeds give equal results");
   }
 
