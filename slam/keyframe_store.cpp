@@ -7,13 +7,14 @@
 
 namespace rankslam::slam {
 
-KeyframeStore::KeyframeStore(int capacity, std::size_t photometric_capacity, int geometric_capacity,
+KeyframeStore::KeyframeStore(int capacity, std::size_t photometric_capacity, int geometric_capacity, int cloud_points,
                              int points_per_keyframe)
     : slots_(static_cast<std::size_t>(std::max(0, capacity))) {
   for (StoredKeyframe& keyframe : slots_) {
     keyframe.photometric.reserve(photometric_capacity);
-    // Keypoints and descriptors only: loop closure matches descriptors, it runs no ICP.
-    keyframe.geometric.reserve(geometric_capacity, 0, 0);
+    // Keypoints, descriptors and the sampled cloud: loop closure matches descriptors and refines
+    // weak closures by ICP against the cloud; the dense block means come from the current frame.
+    keyframe.geometric.reserve(geometric_capacity, geometric_capacity > 0 ? cloud_points : 0, 0);
     keyframe.points.assign(static_cast<std::size_t>(std::max(0, points_per_keyframe)), KeyframePoint{});
   }
 }
@@ -84,6 +85,21 @@ void KeyframeStore::copy_features(const geometry::GeometricFeatures& from, geome
   std::copy_n(from.sigma_m.begin(), n, to.sigma_m.begin());
   std::copy_n(from.descriptors.begin(), static_cast<std::ptrdiff_t>(n) * geometry::kShotSize, to.descriptors.begin());
   to.count = n;
+  // The sampled cloud, evenly strided down to the room kept (the ICP associates projectively, so
+  // a thinned target still covers the view).
+  const int room = static_cast<int>(to.cloud_points.size());
+  to.cloud_count = 0;
+  if (room > 0 && from.cloud_count > 0) {
+    const int stride = (from.cloud_count + room - 1) / room;
+    for (int i = 0; i < from.cloud_count; i += stride) {
+      const auto a = static_cast<std::size_t>(i);
+      const auto b = static_cast<std::size_t>(to.cloud_count++);
+      to.cloud_points[b] = from.cloud_points[a];
+      to.cloud_normals[b] = from.cloud_normals[a];
+      to.cloud_pixels[b] = from.cloud_pixels[a];
+      to.cloud_curvature[b] = from.cloud_curvature[a];
+    }
+  }
   to.resolution_m = from.resolution_m;
   to.voxel_leaf_m = from.voxel_leaf_m;
 }

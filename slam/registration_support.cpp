@@ -1,9 +1,11 @@
 #include "rankslam/slam/registration_support.hpp"
 
+#include <Eigen/Cholesky>
 #include <Eigen/Eigenvalues>
 
 #include <algorithm>
 #include <cmath>
+#include <limits>
 
 namespace rankslam::slam {
 namespace {
@@ -40,6 +42,37 @@ Matrix6d step_prior_information(const Eigen::Isometry3d& T_target_prior, const E
   return to_step.transpose() * step_information.asDiagonal() * to_step;
 }
 
+Matrix6d prior_information_on_target(const Eigen::Isometry3d& T_target_prior, const Matrix6d& information_xi) {
+  const Matrix6d to_xi = adjoint(T_target_prior.inverse());  // ξ = Ad(M⁻¹)·ε
+  const Matrix6d information = to_xi.transpose() * information_xi * to_xi;
+  return 0.5 * (information + information.transpose());
+}
+
+Eigen::Isometry3d drivable_step(const Eigen::Isometry3d& step_cam, const Eigen::Isometry3d& T_base_cam) {
+  const Eigen::Isometry3d step_base = T_base_cam * step_cam * T_base_cam.inverse();
+  const Eigen::Matrix3d R = step_base.rotation();
+  Eigen::Isometry3d drivable = Eigen::Isometry3d::Identity();
+  drivable.linear() = Eigen::AngleAxisd(std::atan2(R(1, 0), R(0, 0)), Eigen::Vector3d::UnitZ()).toRotationMatrix();
+  drivable.translation() = Eigen::Vector3d(step_base.translation().x(), 0.0, 0.0);
+  return T_base_cam.inverse() * drivable * T_base_cam;
+}
+
+MotionBelief combine(const MotionBelief& prior, const MotionBelief& measurement) {
+  const Eigen::Isometry3d offset = prior.mean.inverse() * measurement.mean;
+  const Eigen::AngleAxisd rotation(offset.rotation());
+  Eigen::Matrix<double, 6, 1> xi;
+  xi << rotation.angle() * rotation.axis(), offset.translation();
+  MotionBelief result;
+  result.information = prior.information + measurement.information;
+  const Eigen::Matrix<double, 6, 1> shift = result.information.ldlt().solve(measurement.information * xi);
+  Eigen::Isometry3d step = Eigen::Isometry3d::Identity();
+  const double angle = shift.head<3>().norm();
+  if (angle > 0.0) step.linear() = Eigen::AngleAxisd(angle, shift.head<3>() / angle).toRotationMatrix();
+  step.translation() = shift.tail<3>();
+  result.mean = prior.mean * step;
+  return result;
+}
+
 double inlier_thickness_m(const Eigen::Isometry3d& T_target_source, std::span<const Eigen::Vector3f> source,
                           std::span<const Eigen::Vector3f> target, std::span<const double> sigma_m) {
   Eigen::Vector3d sum = Eigen::Vector3d::Zero();
@@ -69,6 +102,24 @@ Matrix6d correspondence_information(const Eigen::Isometry3d& T_target_source, st
     information += B.transpose() * B / (sigma * sigma);
   });
   return information;
+}
+
+double rotation_sigma_rad(const Matrix6d& information) {
+  const Eigen::LDLT<Matrix6d> factor(information);
+  if (factor.info() != Eigen::Success || !(factor.vectorD().minCoeff() > 1e-12 * factor.vectorD().maxCoeff())) {
+    return std::numeric_limits<double>::infinity();
+  }
+  const Matrix6d covariance = factor.solve(Matrix6d::Identity());
+  const Eigen::SelfAdjointEigenSolver<Eigen::Matrix3d> rotation(covariance.topLeftCorner<3, 3>(), Eigen::EigenvaluesOnly);
+  return std::sqrt(std::max(0.0, rotation.eigenvalues()(2)));
+}
+
+double least_information_ratio(const Matrix6d& measured, const Matrix6d& reference) {
+  const Eigen::LLT<Matrix6d> reference_factor(reference);
+  if (reference_factor.info() != Eigen::Success) return 0.0;
+  const Eigen::GeneralizedSelfAdjointEigenSolver<Matrix6d> ratios(measured, reference, Eigen::EigenvaluesOnly);
+  if (ratios.info() != Eigen::Success) return 0.0;
+  return std::max(0.0, ratios.eigenvalues()(0));
 }
 
 Matrix6d surface_information(std::span<const Eigen::Vector3f> points, std::span<const Eigen::Vector3f> normals) {

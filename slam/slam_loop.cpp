@@ -122,6 +122,7 @@ SlamLoop::SlamLoop(const SlamConfig& config, const hal::Calibration& calibration
     : config_(config),
       camera_(calibration.rgb, calibration.depth_scale),
       T_base_cam_(calibration.rgb.T_base_cam),
+      differential_drive_(calibration.wheels.has_value()),
       orb_(config_, camera_),
       infrared_orb_(config_, camera_, config_.ir_orb_fast_threshold),
       estimator_(config_, static_cast<std::size_t>(config.orb_features) * 2 +
@@ -133,6 +134,7 @@ SlamLoop::SlamLoop(const SlamConfig& config, const hal::Calibration& calibration
       keyframe_store_(config.keyframe_capacity,
                       config.mode == Mode::kGeometric ? 0 : static_cast<std::size_t>(config.orb_features) * 2,
                       config.mode == Mode::kGeometric || config.mode == Mode::kFused ? config.geometry.max_keypoints : 0,
+                      config.mode == Mode::kFused ? config.keyframe_cloud_points : 0,
                       config.map_points_per_keyframe),
       loop_threshold_(config.loop_initial_threshold, config.loop_threshold_deviations) {
   // Room for a sequential edge per key-frame and several loop closures each.
@@ -242,7 +244,7 @@ MotionEstimate SlamLoop::register_frames(const PhotometricFeatures& target, cons
                                          FrameResult& result, const Eigen::Isometry3d& predicted,
                                          const Eigen::Isometry3d& at_rest,
                                          const geometry::GeometricFeatures* target_geometric,
-                                         const geometry::GeometricFeatures* current_geometric) {
+                                         const geometry::GeometricFeatures* current_geometric, bool refine) {
   auto stage_start = Clock::now();
   const auto match_photometric = [&] {
     matcher_.match(target.descriptors, current.descriptors, config_.max_hamming_distance, matches_);
@@ -306,7 +308,7 @@ MotionEstimate SlamLoop::register_frames(const PhotometricFeatures& target, cons
   result.times.ms[kMatching] += elapsed_ms(stage_start);
   if (fused) {
     return fused_estimate(*target_geometric, target_velocity, *current_geometric, current_velocity, geometric_count,
-                          result, predicted, at_rest);
+                          result, predicted, at_rest, refine);
   }
 
   stage_start = Clock::now();
@@ -324,7 +326,7 @@ MotionEstimate SlamLoop::fused_estimate(const geometry::GeometricFeatures& targe
                                         const geometry::GeometricFeatures& current_geometric,
                                         const Velocity& current_velocity, int geometric_count,
                                         FrameResult& result, const Eigen::Isometry3d& predicted,
-                                        const Eigen::Isometry3d& at_rest) {
+                                        const Eigen::Isometry3d& at_rest, bool refine) {
   auto stage_start = Clock::now();
   const auto photometric_count = static_cast<int>(source_points_.size());
   // 1. Each kind alone: its inlier ratio says how well it fits this scene.
@@ -397,7 +399,10 @@ MotionEstimate SlamLoop::fused_estimate(const geometry::GeometricFeatures& targe
   // estimate when it is one (see SlamConfig::fused_max_noise_scale), else the previous pose. An
   // estimate that is no registration neither seeds the ICP (a corridor's end wall registered
   // turned by 180 deg, and ICP from there stayed turned) nor holds it.
-  if (config_.fused_icp_below_photometric_inliers > 0 && photometric_inliers < config_.fused_icp_below_photometric_inliers) {
+  last_photometric_inliers_ = photometric_inliers;
+  last_photometric_rotation_sigma_deg_ =
+      photometric_rotation_sigma_deg(photometric, static_cast<std::size_t>(photometric_count));
+  if (refine && photometric_needs_refinement(config_.fused_icp_above_rotation_sigma_deg)) {
     stage_start = Clock::now();
     const std::span<const Eigen::Vector3f> all_source(source_points_);
     const std::span<const Eigen::Vector3f> all_target(target_points_);
@@ -407,17 +412,9 @@ MotionEstimate SlamLoop::fused_estimate(const geometry::GeometricFeatures& targe
                                                             geometric_sigma) >= config_.fused_min_geometric_thickness_m);
     const bool registered = fused.ok && fused.inliers >= config_.min_inliers &&
                             fused.noise_scale <= config_.fused_max_noise_scale && shaped;
-    geometry::IcpPrior prior;
-    prior.T_previous_current = registered ? fused.T_target_source : at_rest;
-    // At rest, the step is the robot base's (through the camera mount): a base turning in place
-    // swings the camera on its lever arm, 15 cm on the corridor robot, whose turns came out
-    // 30-45 % short while the camera itself was held still. A feature estimate's error is the
-    // camera's. Without a mount (identity) the two are the same.
-    prior.information = step_prior_information(prior.T_previous_current,
-                                               registered ? Eigen::Isometry3d::Identity() : T_base_cam_,
-                                               icp_prior_information_);
     const Matrix6d feature_information =
         registered ? correspondence_information(fused.T_target_source, all_source, all_target, all_sigma) : Matrix6d::Zero();
+    const geometry::IcpPrior prior = fused_icp_prior(at_rest, predicted, fused, registered, feature_information);
     const geometry::FrameRegistration refined = geometric_.register_frames(
         target_geometric, current_geometric, registered ? fused.T_target_source : predicted, prior);
     if (refined.ok && refined.refined_from != geometry::RefinementStart::kNone) {
@@ -436,6 +433,57 @@ MotionEstimate SlamLoop::fused_estimate(const geometry::GeometricFeatures& targe
     result.times.ms[kIcp] += elapsed_ms(stage_start);
   }
   return fused;
+}
+
+double SlamLoop::photometric_rotation_sigma_deg(const MotionEstimate& photometric, std::size_t photometric_count) const {
+  if (!photometric.ok) return std::numeric_limits<double>::infinity();
+  const std::span<const Eigen::Vector3f> source(source_points_.data(), photometric_count);
+  const std::span<const Eigen::Vector3f> target(target_points_.data(), photometric_count);
+  const std::span<const double> sigma(correspondence_sigma_m_.data(), photometric_count);
+  const Matrix6d information = correspondence_information(photometric.T_target_source, source, target, sigma) /
+                               std::max(1.0, photometric.noise_scale * photometric.noise_scale);
+  return rotation_sigma_rad(information) * 180.0 / M_PI;
+}
+
+bool SlamLoop::photometric_needs_refinement(double above_rotation_sigma_deg) const {
+  if (config_.fused_icp_below_photometric_inliers > 0 &&
+      last_photometric_inliers_ < config_.fused_icp_below_photometric_inliers) {
+    return true;
+  }
+  return above_rotation_sigma_deg > 0.0 && !(last_photometric_rotation_sigma_deg_ <= above_rotation_sigma_deg);
+}
+
+geometry::IcpPrior SlamLoop::fused_icp_prior(const Eigen::Isometry3d& at_rest, const Eigen::Isometry3d& predicted,
+                                             const MotionEstimate& feature, bool registered,
+                                             const Matrix6d& feature_information) const {
+  geometry::IcpPrior prior;
+  if (config_.fused_icp_base_kinematics == 0 || !differential_drive_) {
+    prior.T_previous_current = registered ? feature.T_target_source : at_rest;
+    // At rest, the step is the robot base's (through the camera mount): a base turning in place
+    // swings the camera on its lever arm, 15 cm on the corridor robot, whose turns came out
+    // 30-45 % short while the camera itself was held still. A feature estimate's error is the
+    // camera's. Without a mount (identity) the two are the same.
+    prior.information = step_prior_information(prior.T_previous_current,
+                                               registered ? Eigen::Isometry3d::Identity() : T_base_cam_,
+                                               icp_prior_information_);
+    return prior;
+  }
+  // The base's drivable step from the previous frame at its predicted speed and turn rate, held
+  // with the base's per-frame strength; a feature registration moves it by its own information
+  // (less where its inliers fit worse than their noise).
+  const Matrix6d to_base = adjoint(T_base_cam_);
+  MotionBelief belief;
+  belief.mean = at_rest * drivable_step(at_rest.inverse() * predicted, T_base_cam_);
+  belief.information = to_base.transpose() * icp_prior_information_.asDiagonal() * to_base;
+  if (registered) {
+    MotionBelief measured;
+    measured.mean = feature.T_target_source;
+    measured.information = feature_information / std::max(1.0, feature.noise_scale * feature.noise_scale);
+    belief = combine(belief, measured);
+  }
+  prior.T_previous_current = belief.mean;
+  prior.information = prior_information_on_target(belief.mean, belief.information);
+  return prior;
 }
 
 bool SlamLoop::accept(const MotionEstimate& estimate, const Eigen::Isometry3d& T_world_target,
@@ -1009,22 +1057,45 @@ void SlamLoop::close_loops(int slot, FrameResult& result) {
     StoredKeyframe& stored = keyframe_store_.slot(loop_candidates_[c].second);
     const Eigen::Isometry3d predicted = stored.T_world_cam.inverse() * current.T_world_cam;
     FrameResult scratch;
-    const MotionEstimate estimate =
-        register_frames(stored.photometric, stored.velocity, current.photometric, current.velocity, scratch, predicted,
-                        predicted, with_geometry ? &stored.geometric : nullptr, with_geometry ? &current.geometric : nullptr);
+    const MotionEstimate estimate = register_frames(
+        stored.photometric, stored.velocity, current.photometric, current.velocity, scratch, predicted, predicted,
+        with_geometry ? &stored.geometric : nullptr, with_geometry ? &current.geometric : nullptr, /*refine=*/false);
     if (!estimate.ok || !estimate.T_target_source.matrix().allFinite()) continue;
     const int photometric_inliers = with_geometry ? scratch.photometric_inliers : scratch.inliers;
     const int geometric_inliers = with_geometry ? scratch.geometric_inliers : 0;
     if (photometric_inliers + geometric_inliers < loop_threshold_.value()) continue;
-    // Where tracking needs the geometric ICP for its precision (few photometric inliers), a
-    // closure on descriptor matches alone is less precise than the chain it would correct (a
-    // stored key-frame keeps no dense cloud to refine on): simulated zigzag-plain, fused ATE
-    // 0.027 m with such closures, 0.0007 m without.
-    if (with_geometry && photometric_inliers < config_.fused_icp_below_photometric_inliers) continue;
+    // Where tracking needs the geometric ICP for its precision (photometric inliers few or poorly
+    // spread), a closure on descriptor matches alone is less precise than the chain it would
+    // correct (simulated zigzag-plain, fused ATE 0.027 m with such closures, 0.0007 m without;
+    // on the corridor loop they were 2-9 cm and 0.5-1.7 deg off): it is refined as tracking is,
+    // on the key-frame's stored cloud, the feature estimate holding what the view leaves free,
+    // and is not taken unrefined.
+    Eigen::Isometry3d T_stored_current = estimate.T_target_source;
+    bool refined_by_icp = false;
+    if (with_geometry && photometric_needs_refinement(config_.loop_icp_above_rotation_sigma_deg)) {
+      if (stored.geometric.cloud_count < 3 || current_geometric_ == nullptr) continue;
+      geometry::IcpPrior feature_prior;
+      feature_prior.T_previous_current = estimate.T_target_source;
+      feature_prior.information =
+          step_prior_information(estimate.T_target_source, Eigen::Isometry3d::Identity(), icp_prior_information_);
+      const geometry::FrameRegistration refined =
+          geometric_.register_frames(stored.geometric, *current_geometric_, estimate.T_target_source, feature_prior);
+      if (!refined.ok || refined.refined_from == geometry::RefinementStart::kNone ||
+          refined.icp_inliers < config_.min_icp_inliers) {
+        continue;
+      }
+      // Refinement that could not fix what the features left loose keeps their error.
+      if (least_information_ratio(refined.icp_information, feature_prior.information) <
+          config_.loop_icp_min_information_ratio) {
+        continue;
+      }
+      T_stored_current = refined.T_previous_current;
+      refined_by_icp = true;
+    }
 
     // Pose consistency: a true closure corrects the drift accumulated since the candidate, no more.
     const double travelled_m = current.path_m - stored.path_m;
-    const Eigen::Isometry3d correction = predicted.inverse() * estimate.T_target_source;
+    const Eigen::Isometry3d correction = predicted.inverse() * T_stored_current;
     if (correction.translation().norm() > config_.loop_max_correction_m + config_.loop_drift_per_m * travelled_m ||
         rotation_deg(correction) > config_.loop_max_correction_deg + config_.loop_drift_deg_per_m * travelled_m) {
       continue;
@@ -1052,8 +1123,23 @@ void SlamLoop::close_loops(int slot, FrameResult& result) {
     graph::Edge edge;
     edge.from = stored.node;
     edge.to = current.node;
-    edge.T_from_to = rigid(estimate.T_target_source);
-    edge.information = registration_information(photometric_inliers + geometric_inliers, estimate.noise_scale);
+    edge.T_from_to = rigid(T_stored_current);
+    if (refined_by_icp) {
+      // As a sequential ICP-refined edge: what the surfaces fix, plus the feature inliers where
+      // they fit their noise. A closure the view leaves free in a direction (a robot that turned
+      // back to face the same plain corridor) then does not pull the chain along it.
+      const auto cloud_count = static_cast<std::size_t>(current_geometric_->cloud_count);
+      edge.information = surface_information({current_geometric_->cloud_points.data(), cloud_count},
+                                             {current_geometric_->cloud_normals.data(), cloud_count}) /
+                         (config_.graph_icp_sigma_m * config_.graph_icp_sigma_m);
+      if (estimate.noise_scale <= config_.fused_max_noise_scale) {
+        edge.information += correspondence_information(estimate.T_target_source, source_points_, target_points_,
+                                                       correspondence_sigma_m_) /
+                            std::max(1.0, estimate.noise_scale * estimate.noise_scale);
+      }
+    } else {
+      edge.information = registration_information(photometric_inliers + geometric_inliers, estimate.noise_scale);
+    }
     edge.kind = graph::EdgeKind::kLoopClosure;
     if (!graph_.add_edge(edge)) continue;
     ++stored.loop_closures;

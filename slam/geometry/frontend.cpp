@@ -401,6 +401,7 @@ FrameRegistration GeometricFrontend::register_frames(const GeometricFeatures& pr
   registration.refined_from = start;
   registration.icp_inliers = best.inliers;
   registration.icp_rms_m = best.rms_m;
+  registration.icp_information = best.information;
   registration.T_previous_current = best.T_previous_current;
   registration.ok = true;
   registration.status = GeometryStatus::kOk;

@@ -266,6 +266,7 @@ IcpResult PlaneIcp::refine(const IcpCloud& previous, const IcpCloud& current,
       sum_sq += r * r;
     }
     H = H.selfadjointView<Eigen::Lower>();
+    result.information = H;
     if (config.prior.information.any()) {
       // ε = log(T·prior⁻¹) moves to ε + δ under the update exp(δ)·T, to first order.
       const Eigen::Isometry3d off_prior = T * config.prior.T_previous_current.inverse();

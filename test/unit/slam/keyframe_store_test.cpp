@@ -25,7 +25,7 @@ void fill(KeyframeStore& store) {
 }
 
 TEST(KeyframeStore, FillsFreeSlotsThenReportsFull) {
-  KeyframeStore store(4, 10, 5, 20);
+  KeyframeStore store(4, 10, 5, 0, 20);
   EXPECT_EQ(store.size(), 0);
   fill(store);
   EXPECT_EQ(store.size(), 4);
@@ -36,7 +36,7 @@ TEST(KeyframeStore, FillsFreeSlotsThenReportsFull) {
 }
 
 TEST(KeyframeStore, RetiresTheOldestUnconnectedKeyframeAwayFromTheCamera) {
-  KeyframeStore store(6, 10, 5, 20);
+  KeyframeStore store(6, 10, 5, 0, 20);
   fill(store);
   // Slot 0 holds a loop closure: kept while unconnected ones remain.
   store.slot(0).loop_closures = 1;
@@ -63,7 +63,7 @@ TEST(KeyframeStore, CopiesFeaturesIntoTheSlotsPreallocatedMemory) {
   from.descriptors = from.descriptor_storage.rowRange(0, 3);
   from.source = ImageSource::kInfrared;
 
-  KeyframeStore store(1, 8, 4, 10);
+  KeyframeStore store(1, 8, 4, 3, 10);
   PhotometricFeatures& to = store.slot(0).photometric;
   const unsigned char* memory = to.descriptor_storage.data;
   KeyframeStore::copy_features(from, to);
@@ -75,14 +75,31 @@ TEST(KeyframeStore, CopiesFeaturesIntoTheSlotsPreallocatedMemory) {
   EXPECT_EQ(to.source, ImageSource::kInfrared);
 
   geometry::GeometricFeatures geometric;
-  geometric.reserve(6, 0, 0);
+  geometric.reserve(6, 7, 0);
   geometric.count = 6;
   geometric.descriptors[5 * geometry::kShotSize] = 0.5F;
   geometric.voxel_leaf_m = 0.03F;
+  geometric.cloud_count = 7;
+  for (int i = 0; i < 7; ++i) {
+    const auto k = static_cast<std::size_t>(i);
+    geometric.cloud_points[k] = Eigen::Vector3f(static_cast<float>(i), 0.0F, 1.0F);
+    geometric.cloud_normals[k] = Eigen::Vector3f(0.0F, 0.0F, -1.0F);
+    geometric.cloud_pixels[k] = Eigen::Vector2f(static_cast<float>(10 * i), 5.0F);
+    geometric.cloud_curvature[k] = 0.001F * static_cast<float>(i);
+  }
   geometry::GeometricFeatures& stored = store.slot(0).geometric;
   KeyframeStore::copy_features(geometric, stored);
   EXPECT_EQ(stored.count, 4);  // capped at the slot's capacity
   EXPECT_FLOAT_EQ(stored.voxel_leaf_m, 0.03F);
+  // 7 cloud points into room for 3: every third, in order, each with its own normal and pixel.
+  ASSERT_EQ(stored.cloud_count, 3);
+  for (int i = 0; i < 3; ++i) {
+    const auto k = static_cast<std::size_t>(i);
+    EXPECT_FLOAT_EQ(stored.cloud_points[k].x(), static_cast<float>(3 * i));
+    EXPECT_FLOAT_EQ(stored.cloud_pixels[k].x(), static_cast<float>(30 * i));
+    EXPECT_FLOAT_EQ(stored.cloud_curvature[k], 0.003F * static_cast<float>(i));
+    EXPECT_FLOAT_EQ(stored.cloud_normals[k].z(), -1.0F);
+  }
 }
 
 TEST(AdaptiveLoopThreshold, StartsAtTheInitialValueThenFollowsMeanMinusDeviation) {

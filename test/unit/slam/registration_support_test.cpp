@@ -156,5 +156,124 @@ TEST(RegistrationSupport, StepPriorInTheBaseFrameLetsTheCameraSwingOnItsMount) {
   EXPECT_NEAR(prior_cost(forward, M, camera), 1.0, 1e-9);
 }
 
+// The corridor robot's mounting: camera 15 cm ahead of the base's axis, 50 cm up, looking forward.
+Eigen::Isometry3d corridor_mount() {
+  Eigen::Isometry3d T_base_cam = Eigen::Isometry3d::Identity();
+  T_base_cam.linear() = Eigen::Quaterniond(0.5, -0.5, 0.5, -0.5).toRotationMatrix();  // optical → base axes
+  T_base_cam.translation() = Eigen::Vector3d(0.15, 0.0, 0.5);
+  return T_base_cam;
+}
+
+// Information on ξ (right of M) stated as step_prior_information's diagonal gives the same ε
+// information: the general conversion and the diagonal one agree.
+TEST(RegistrationSupport, PriorInformationOnTheTargetMatchesTheStepPriorsConversion) {
+  Eigen::Isometry3d M = turn_about({0.2, 1.0, -0.1}, 12.0);
+  M.translation() = Eigen::Vector3d(0.05, -0.02, 0.2);
+  const Eigen::Matrix<double, 6, 1> strength = one_degree_one_centimetre();
+  const Matrix6d expected = step_prior_information(M, Eigen::Isometry3d::Identity(), strength);
+  const Matrix6d converted = prior_information_on_target(M, strength.asDiagonal());
+  EXPECT_LT((converted - expected).norm(), 1e-6 * expected.norm());
+}
+
+// A base that rolls forward 1 cm and turns 2° keeps that step; the slide, lift and tilt a
+// registration may add are not a differential drive's and go, whatever the camera's mounting.
+TEST(RegistrationSupport, DrivableStepKeepsForwardTravelAndTurnOnly) {
+  const Eigen::Isometry3d T_base_cam = corridor_mount();
+  Eigen::Isometry3d drive = turn_about(Eigen::Vector3d::UnitZ(), 2.0);
+  drive.translation() = Eigen::Vector3d(0.01, 0.0, 0.0);
+  const Eigen::Isometry3d step_cam = T_base_cam.inverse() * drive * T_base_cam;
+  const Eigen::Isometry3d kept = drivable_step(step_cam, T_base_cam);
+  EXPECT_LT((kept.matrix() - step_cam.matrix()).norm(), 1e-12);
+
+  Eigen::Isometry3d disturbed = drive * turn_about(Eigen::Vector3d::UnitX(), 1.5) * turn_about(Eigen::Vector3d::UnitY(), -0.7);
+  disturbed.translation() += Eigen::Vector3d(0.0, 0.004, -0.003);
+  const Eigen::Isometry3d base_step =
+      T_base_cam * drivable_step(T_base_cam.inverse() * disturbed * T_base_cam, T_base_cam) * T_base_cam.inverse();
+  EXPECT_NEAR(base_step.translation().x(), 0.01, 1e-12);
+  EXPECT_NEAR(base_step.translation().y(), 0.0, 1e-12);
+  EXPECT_NEAR(base_step.translation().z(), 0.0, 1e-12);
+  const Eigen::Matrix3d R = base_step.rotation();
+  EXPECT_NEAR(R(2, 2), 1.0, 1e-12);  // the vertical stays vertical
+  EXPECT_NEAR(std::atan2(R(1, 0), R(0, 0)) * 180.0 / M_PI, 2.0, 0.05);
+}
+
+// Two beliefs on a motion meet where their information weighs them: equal information halfway,
+// and a direction only one of them informs follows that one.
+TEST(RegistrationSupport, CombinedBeliefsMeetWhereTheirInformationWeighsThem) {
+  MotionBelief prior;
+  prior.information = Matrix6d::Identity() * 1e4;
+  MotionBelief measured;
+  measured.mean.translation() = Eigen::Vector3d(0.02, 0.0, 0.04);
+  measured.information = Matrix6d::Identity() * 1e4;
+  MotionBelief both = combine(prior, measured);
+  EXPECT_NEAR(both.mean.translation().x(), 0.01, 1e-9);
+  EXPECT_NEAR(both.mean.translation().z(), 0.02, 1e-9);
+  EXPECT_LT((both.information - Matrix6d::Identity() * 2e4).norm(), 1e-9);
+
+  // The measurement informs the travel (z) alone, 100 times more than the prior: z follows it,
+  // x stays with the prior.
+  measured.information.setZero();
+  measured.information(5, 5) = 1e6;
+  both = combine(prior, measured);
+  EXPECT_NEAR(both.mean.translation().x(), 0.0, 1e-9);
+  EXPECT_NEAR(both.mean.translation().z(), 0.04 * 100.0 / 101.0, 1e-9);
+}
+
+// n points of noise σ spread ±d about the camera's axis at depth z fix the turn about that axis
+// to σ / (d·√n)-ish; one point in front leaves it free.
+TEST(RegistrationSupport, RotationSigmaIsTheLeastFixedTurnOfAnInformation) {
+  std::vector<Eigen::Vector3f> points;
+  for (const float x : {-0.5F, 0.5F}) {
+    for (const float y : {-0.5F, 0.5F}) points.emplace_back(x, y, 2.0F);
+  }
+  const std::vector<double> sigma(points.size(), 0.01);
+  const Matrix6d information = correspondence_information(Eigen::Isometry3d::Identity(), points, points, sigma);
+  // About the optical axis each point sits 0.71 m out: σ_rot = 0.01 / (0.71·√4) = 7.1 mrad; the
+  // turns about x and y trade with translation over the 2 m depth and are less fixed.
+  const double about_axis = 0.01 / (std::sqrt(0.5) * 2.0);
+  EXPECT_GT(rotation_sigma_rad(information), about_axis);
+  Matrix6d translations_known = information;
+  translations_known.bottomRightCorner<3, 3>() += Eigen::Matrix3d::Identity() * 1e12;
+  EXPECT_NEAR(rotation_sigma_rad(translations_known), 0.01 / (std::sqrt(0.5) * 2.0), 1e-6);
+  const std::vector<Eigen::Vector3f> one{{0.0F, 0.0F, 2.0F}};
+  EXPECT_TRUE(std::isinf(rotation_sigma_rad(
+      correspondence_information(Eigen::Isometry3d::Identity(), one, one, std::vector<double>{0.01}))));
+}
+
+// A floor seen alone fixes height, roll and pitch but leaves travel, sideways and the turn free:
+// against a feature estimate that fixes everything, its least ratio is 0; add walls in front and
+// to the sides and every direction is fixed.
+TEST(RegistrationSupport, LeastInformationRatioIsWhatTheMeasurementLeavesToTheReference) {
+  const Matrix6d reference = Matrix6d::Identity() * 100.0;
+  Matrix6d measured = Matrix6d::Identity() * 400.0;
+  EXPECT_NEAR(least_information_ratio(measured, reference), 4.0, 1e-9);
+  measured(2, 2) = 25.0;
+  EXPECT_NEAR(least_information_ratio(measured, reference), 0.25, 1e-9);
+
+  std::vector<Eigen::Vector3f> points;
+  std::vector<Eigen::Vector3f> normals;
+  for (float x = -1.0F; x <= 1.0F; x += 0.25F) {
+    for (float z = 1.0F; z <= 3.0F; z += 0.25F) {
+      points.emplace_back(x, 0.8F, z);  // floor below the camera (y down)
+      normals.emplace_back(0.0F, -1.0F, 0.0F);
+    }
+  }
+  EXPECT_LT(least_information_ratio(surface_information(points, normals), Matrix6d::Identity() * 1e-3), 1e-9);
+  for (float y = -0.8F; y <= 0.8F; y += 0.2F) {
+    for (float t = -1.0F; t <= 1.0F; t += 0.25F) {
+      points.emplace_back(t, y, 3.0F);  // wall ahead
+      normals.emplace_back(0.0F, 0.0F, -1.0F);
+      points.emplace_back(-1.2F, y, 2.0F + t);  // side walls
+      normals.emplace_back(1.0F, 0.0F, 0.0F);
+      points.emplace_back(1.2F, y, 2.0F + t);
+      normals.emplace_back(-1.0F, 0.0F, 0.0F);
+    }
+  }
+  EXPECT_GT(least_information_ratio(surface_information(points, normals), Matrix6d::Identity() * 1e-3), 1.0);
+  Matrix6d not_a_reference = Matrix6d::Identity();
+  not_a_reference(4, 4) = 0.0;
+  EXPECT_EQ(least_information_ratio(measured, not_a_reference), 0.0);
+}
+
 }  // namespace
 }  // namespace rankslam::slam

@@ -192,6 +192,15 @@ struct SlamConfig {
   // only hurts (Kinect noise on a cluttered desk): with loop closure, ATE 0.033 m below 100,
   // 0.030 m below 30, while the simulated scenes stay at 0.0085 / 0.0007 / 0.0027 m. 0: never.
   int fused_icp_below_photometric_inliers = 30;
+  // The refinement also runs where the photometric inliers are many but fix the rotation poorly:
+  // a poster's worth of corners 2-3 m away sets tilt and height only together (simulated
+  // corridor: 40-60 inliers on one notice, registrations 1-2 deg and 5 cm off). Above this
+  // rotation uncertainty (1 sigma, from the inliers' information and their noise scale), the ICP
+  // refines. fr1_rpy_head's photometric registrations: median 0.20 deg, 90th percentile 0.64;
+  // the corridor's on its notices: median 1.8 deg, 10th percentile 0.68. Corridor loop (seed 1,
+  // no wheels), ATE without / with loop closure: 0.226 / 0.118 m with 0, 0.127 / 0.096 m with 1;
+  // fr1_rpy_head seeds 1-5 unchanged (0.0193-0.0207 m). 0: never.
+  double fused_icp_above_rotation_sigma_deg = 1.0;
   // That refinement where the view fixes only part of the motion (a lone wall fixes its
   // distance and tilt, a corridor everything but the travel along it): the ICP holds a prior
   // there. A feature estimate may be the prior only when it is one: at least min_inliers
@@ -207,6 +216,17 @@ struct SlamConfig {
   // 0.24 m.) fused_icp_prior_sigma_* is the prior's strength on the step from its pose: the
   // camera's for a feature estimate, the robot base's at rest (through the calibration's
   // T_base_cam, so that a base turning in place may swing the camera on its mount).
+  // On a differential-drive robot (the calibration has `wheels`: a planar base, whether or not
+  // its encoders are read) the prior is the base's drivable step instead: the constant-velocity
+  // prediction kept to forward travel and a turn, no sideways slide, no change in height, roll or
+  // pitch, combined with the feature estimate when it is a registration (each by its
+  // information). A base cannot leave the floor, and between two frames it keeps about its speed;
+  // the feature estimate keeps that speed honest. Corridor loop (seed 1, no wheels), ATE without
+  // / with loop closure: 0.196 / 0.161 m (one false closure) with 0, 0.127 / 0.096 m with 1.
+  // (The drivable step alone, without the feature estimate, ran away along the corridor: 2.4 m;
+  // the full constant-velocity step as the prior tilted the camera by 30 deg facing the end wall,
+  // whose one plane leaves the turn about its normal free.) 0: the prior above on every platform.
+  int fused_icp_base_kinematics = 1;
   double fused_icp_prior_sigma_m = 0.01;
   double fused_icp_prior_sigma_deg = 1.0;
   double fused_max_noise_scale = 2.0;
@@ -215,9 +235,19 @@ struct SlamConfig {
   // this many point-to-plane inliers (a lone wall at 1 m gives 1 000-4 000).
   int min_icp_inliers = 300;
   // Back-end (ALGORITHMS.md §3 "Back-end", §5): key-frame store, loop closure, pose graph.
-  // Stored key-frames (features, map points, graph node); when full, one far from the camera with
-  // the fewest loop closures is retired (KeyframeStore::retirement_candidate). About 0.8 MB each.
+  // Stored key-frames (features, map points, graph node, sampled cloud); when full, one far from
+  // the camera with the fewest loop closures is retired (KeyframeStore::retirement_candidate).
+  // About 1 MB each.
   int keyframe_capacity = 128;
+  // Sampled points (voxel centroids, normals, pixels) each key-frame keeps, so that a loop
+  // closure whose photometric inliers are weak (see fused_icp_below_photometric_inliers and
+  // fused_icp_above_rotation_sigma_deg) is refined by the geometric ICP against it, as tracking
+  // is. Evenly strided down to this many. 0: closures on feature matches alone, where weak ones
+  // are not taken. About 36 bytes a point. The corridor loop's closures all have weak
+  // photometric inliers: with 0 it closes nowhere (corridors 1 and 2, seed 1, no wheels: ATE
+  // 0.127 and 0.187 m), with 6000 it closes 8 and 6 times, none false, the worst 3 cm off
+  // (0.096 and 0.146 m). Unrefined, such closures were 2-9 cm and 0.5-1.7 deg off.
+  int keyframe_cloud_points = 6000;
   // Threads that share the per-frame loops (MSSE's hypotheses; the geometric front-end's cloud,
   // keypoints, descriptors, matching and ICP), the tracking thread included: the robot
   // computer's two cores. 1 keeps all on the tracking thread. The estimates are the same for any
@@ -243,6 +273,20 @@ struct SlamConfig {
   double loop_max_correction_m = 0.1;
   double loop_max_correction_deg = 5.0;
   double loop_min_inlier_spread_m = 0.05;
+  // A closure corrects the chain accumulated since its stored key-frame, so it must be more
+  // precise than tracking needs: it is refined by the geometric ICP on the key-frame's stored
+  // cloud (keyframe_cloud_points) when its photometric inliers fix the rotation worse than this
+  // (or are fewer than fused_icp_below_photometric_inliers). On the corridor loop (seed 1) a
+  // closure on 44 inliers of one notice, left unrefined under fused_icp_above_rotation_sigma_deg,
+  // was 9 cm and 1.6 deg off. 0: only the inlier count decides.
+  double loop_icp_above_rotation_sigma_deg = 0.5;
+  // A refined closure is taken only where the surfaces fix every direction at least this fraction
+  // as well as the feature estimate they refine (least generalised eigenvalue of the ICP data
+  // information against the prior's). Facing the blank wall at the loop's stop, or seeing only the
+  // floor, the ICP leaves the closure where the few features put it, 4-16 cm off; dropping those
+  // took the corridor loop (seeds 1 and 2 of both recordings) from 0.095/0.136/0.118/0.080 m to
+  // 0.087/0.106/0.067/0.066 m ATE (0.03: 0.088/0.105, 0.3: 0.087/0.111, 1: 0.087/0.121 on seed 1).
+  double loop_icp_min_information_ratio = 0.1;
   // Edge information from the inlier count (graph::information_from_matches): the error of a
   // registration on one match whose inliers fit as their predicted noise says; a registration
   // that fits worse has its information divided by its noise scale squared
@@ -346,6 +390,10 @@ struct SlamConfig {
           "fused mode: position noise of a geometric keypoint added per frame, in voxel leaves");
     visit("fused_icp_below_photometric_inliers", fused_icp_below_photometric_inliers, 0, 100000, "",
           "fused mode: fewer photometric inliers than this call for the geometric ICP refinement (0: never)");
+    visit("fused_icp_above_rotation_sigma_deg", fused_icp_above_rotation_sigma_deg, 0.0, 180.0, "deg",
+          "fused mode: photometric inliers that fix the rotation worse than this also call for the ICP refinement (0: never)");
+    visit("fused_icp_base_kinematics", fused_icp_base_kinematics, 0, 1, "",
+          "fused mode on a differential-drive robot: the ICP prior is the base's drivable step with the feature estimate");
     visit("fused_icp_prior_sigma_m", fused_icp_prior_sigma_m, 1e-4, 10.0, "m",
           "fused mode: per-frame translation strength of the ICP refinement's prior where the view leaves the motion free");
     visit("fused_icp_prior_sigma_deg", fused_icp_prior_sigma_deg, 1e-3, 90.0, "deg",
@@ -356,7 +404,9 @@ struct SlamConfig {
           "fused mode: geometric inliers must leave a plane by this much for their estimate to be the ICP's prior");
     visit("min_icp_inliers", min_icp_inliers, 3, 1000000, "",
           "an ICP-refined registration with fewer feature inliers than min_inliers needs this many point-to-plane inliers");
-    visit("keyframe_capacity", keyframe_capacity, 2, 65536, "", "key-frames the back-end stores (about 0.8 MB each)");
+    visit("keyframe_capacity", keyframe_capacity, 2, 65536, "", "key-frames the back-end stores (about 1 MB each)");
+    visit("keyframe_cloud_points", keyframe_cloud_points, 0, 1000000, "",
+          "sampled points each key-frame keeps for ICP-refined loop closures (0: none)");
     visit("threads", threads, 1, 8, "", "threads sharing the per-frame loops, the tracking thread included");
     visit("loop_min_keyframe_gap", loop_min_keyframe_gap, 1, 10000, "",
           "the most recent key-frames are not loop-closure candidates");
@@ -377,6 +427,10 @@ struct SlamConfig {
           "a closure may turn the key-frame this much from the graph's estimate (plus drift allowance)");
     visit("loop_min_inlier_spread_m", loop_min_inlier_spread_m, 0.0, 10.0, "m",
           "a closure's inliers must spread at least this far across their second axis");
+    visit("loop_icp_above_rotation_sigma_deg", loop_icp_above_rotation_sigma_deg, 0.0, 180.0, "deg",
+          "fused mode: a loop closure whose photometric inliers fix the rotation worse than this is refined by ICP (0: never for that)");
+    visit("loop_icp_min_information_ratio", loop_icp_min_information_ratio, 0.0, 1.0e6, "",
+          "fused mode: an ICP-refined loop closure is dropped where the surfaces fix some direction less than this fraction of the feature estimate");
     visit("graph_match_sigma_m", graph_match_sigma_m, 1e-6, 10.0, "m", "translation error of a registration on one match");
     visit("graph_match_sigma_deg", graph_match_sigma_deg, 1e-6, 180.0, "deg", "rotation error of a registration on one match");
     visit("graph_icp_sigma_m", graph_icp_sigma_m, 1e-5, 10.0, "m",

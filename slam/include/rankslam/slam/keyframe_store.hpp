@@ -52,8 +52,10 @@ struct StoredKeyframe {
 /// Fixed-capacity key-frame storage.
 class KeyframeStore {
  public:
-  /// Set-up (allocates): `capacity` slots, each with room for the given features and points.
-  KeyframeStore(int capacity, std::size_t photometric_capacity, int geometric_capacity, int points_per_keyframe);
+  /// Set-up (allocates): `capacity` slots, each with room for the given features, sampled-cloud
+  /// points (for ICP-refined loop closures) and map points.
+  KeyframeStore(int capacity, std::size_t photometric_capacity, int geometric_capacity, int cloud_points,
+                int points_per_keyframe);
 
   [[nodiscard]] int capacity() const { return static_cast<int>(slots_.size()); }
   [[nodiscard]] int size() const { return size_; }

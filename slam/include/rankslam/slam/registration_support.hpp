@@ -37,6 +37,29 @@ inline constexpr double kInlierSigmas = 3.0;
                                               const Eigen::Isometry3d& T_frame_current,
                                               const Eigen::Matrix<double, 6, 1>& step_information);
 
+/// Information on ξ (right of M = T_target_prior, the current camera's frame) turned into the
+/// information PlaneIcp's prior takes, on ε = log(T·M⁻¹) = Ad(M)·ξ in the target frame.
+[[nodiscard]] Matrix6d prior_information_on_target(const Eigen::Isometry3d& T_target_prior,
+                                                   const Matrix6d& information_xi);
+
+/// The camera step `step_cam` made by a differential-drive base that can only do what such a base
+/// does between two frames: roll forward and turn about its vertical axis. The base motion
+/// T_base_cam · step_cam · T_base_cam⁻¹ keeps its forward travel (base x) and its heading change
+/// (about base z); its sideways slide, height, roll and pitch are set to zero.
+[[nodiscard]] Eigen::Isometry3d drivable_step(const Eigen::Isometry3d& step_cam, const Eigen::Isometry3d& T_base_cam);
+
+/// A Gaussian belief on a motion: its mean and its information on ξ, a small motion applied on the
+/// right of the mean (the current camera's frame).
+struct MotionBelief {
+  Eigen::Isometry3d mean = Eigen::Isometry3d::Identity();
+  Matrix6d information = Matrix6d::Zero();
+};
+
+/// The product of two beliefs on the same motion, to first order about the first one's mean:
+/// information I₁ + I₂, mean M₁·exp((I₁ + I₂)⁻¹·I₂·log(M₁⁻¹·M₂)). The first must be positive
+/// definite.
+[[nodiscard]] MotionBelief combine(const MotionBelief& prior, const MotionBelief& measurement);
+
 /// √ of the smallest eigenvalue of the covariance of the inliers' source points: how far they
 /// leave their best-fitting plane [m]. 0 with fewer than 4 inliers.
 [[nodiscard]] double inlier_thickness_m(const Eigen::Isometry3d& T_target_source,
@@ -49,6 +72,17 @@ inline constexpr double kInlierSigmas = 3.0;
                                                   std::span<const Eigen::Vector3f> source,
                                                   std::span<const Eigen::Vector3f> target,
                                                   std::span<const double> sigma_m);
+
+/// The largest standard deviation of the rotation [rad] that `information` (over ξ) leaves:
+/// √ of the largest eigenvalue of the rotation block of its inverse. Infinity where it is
+/// singular.
+[[nodiscard]] double rotation_sigma_rad(const Matrix6d& information);
+
+/// How well `measured` fixes its least-fixed direction relative to `reference`: the least
+/// generalised eigenvalue of (measured, reference). 1: as well as the reference in every
+/// direction; 0: some direction is left to the reference alone. 0 when the reference is not
+/// positive definite (nothing to compare against).
+[[nodiscard]] double least_information_ratio(const Matrix6d& measured, const Matrix6d& reference);
 
 /// Mean of aᵢaᵢᵀ, aᵢ = (pᵢ × nᵢ, nᵢ), over surface points with unit normals: the point-to-plane
 /// information per point (of unit noise). A direction the surfaces do not constrain (along a

@@ -256,7 +256,8 @@ class SlamLoop {
                                                FrameResult& result, const Eigen::Isometry3d& predicted,
                                                const Eigen::Isometry3d& at_rest,
                                                const geometry::GeometricFeatures* target_geometric = nullptr,
-                                               const geometry::GeometricFeatures* current_geometric = nullptr);
+                                               const geometry::GeometricFeatures* current_geometric = nullptr,
+                                               bool refine = true);
   /// ALGORITHMS.md §5 over the photometric correspondences already in source_points_ /
   /// target_points_ and the `geometric_count` geometric matches of the two frames already in
   /// geometric_matches_.
@@ -265,7 +266,20 @@ class SlamLoop {
                                               const geometry::GeometricFeatures& current_geometric,
                                               const Velocity& current_velocity, int geometric_count,
                                               FrameResult& result, const Eigen::Isometry3d& predicted,
-                                              const Eigen::Isometry3d& at_rest);
+                                              const Eigen::Isometry3d& at_rest, bool refine);
+  /// How well the photometric estimate's inliers (the first photometric_count correspondences)
+  /// fix the rotation: the largest 1σ [deg] their information leaves; infinity without an
+  /// estimate.
+  [[nodiscard]] double photometric_rotation_sigma_deg(const MotionEstimate& photometric,
+                                                      std::size_t photometric_count) const;
+  /// The last fused registration's photometric estimate fixes the motion too poorly to go without
+  /// the geometric ICP: too few inliers, or inliers that fix the rotation worse than the bound.
+  [[nodiscard]] bool photometric_needs_refinement(double above_rotation_sigma_deg) const;
+  /// The ICP prior of fused mode where the view leaves the motion free (see
+  /// SlamConfig::fused_icp_base_kinematics): `registered` tells whether `feature` is a registration.
+  [[nodiscard]] geometry::IcpPrior fused_icp_prior(const Eigen::Isometry3d& at_rest, const Eigen::Isometry3d& predicted,
+                                                   const MotionEstimate& feature, bool registered,
+                                                   const graph::Matrix6d& feature_information) const;
   /// `point`, seen in image row `row`, moved to the frame's mid-exposure camera pose.
   [[nodiscard]] Eigen::Vector3f rolling_shutter_corrected(const Eigen::Vector3f& point, double row,
                                                           const Velocity& velocity) const;
@@ -328,6 +342,11 @@ class SlamLoop {
   DepthCameraModel camera_;
   /// The camera's mounting on the base, to compare registered and wheel motion in base terms.
   Eigen::Isometry3d T_base_cam_ = Eigen::Isometry3d::Identity();
+  /// The calibration describes a differential-drive base (SlamConfig::fused_icp_base_kinematics).
+  bool differential_drive_ = false;
+  /// The last fused registration's photometric inliers and their rotation uncertainty.
+  int last_photometric_inliers_ = 0;
+  double last_photometric_rotation_sigma_deg_ = 0.0;
   OrbFrontend orb_;
   OrbFrontend infrared_orb_;
   MutualHammingMatcher matcher_;

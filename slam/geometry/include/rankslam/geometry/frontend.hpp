@@ -131,6 +131,8 @@ struct FrameRegistration {
   RefinementStart refined_from = RefinementStart::kNone;
   int icp_inliers = 0;   ///< MSSE inliers of the final ICP iteration
   double icp_rms_m = 0.0;
+  /// IcpResult::information of the ICP stage that set the motion (zero without ICP).
+  Eigen::Matrix<double, 6, 6> icp_information = Eigen::Matrix<double, 6, 6>::Zero();
 };
 
 class GeometricFrontend {

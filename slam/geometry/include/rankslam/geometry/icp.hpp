@@ -74,6 +74,10 @@ struct IcpResult {
   int inliers = 0;       ///< MSSE inliers of the last iteration
   double rms_m = 0.0;    ///< RMS point-to-plane residual of the inliers
   int iterations = 0;
+  /// What the last iteration's inliers alone fix: their Gauss-Newton information on ε (as
+  /// IcpPrior::information: rotation vector then translation, in the previous frame, in the
+  /// residuals' σ units when they are weighted), without the prior.
+  Eigen::Matrix<double, 6, 6> information = Eigen::Matrix<double, 6, 6>::Zero();
 };
 
 /// One side of an ICP problem: a sampled cloud with normals and each point's mean pixel.
