@@ -93,6 +93,14 @@ double mahalanobis_sq(const Vector6d& residual, const Matrix6d& covariance) {
   return residual.dot(factor.solve(residual));
 }
 
+// The point-to-plane information of a frame's sampled cloud at `sigma_m` per fully constraining
+// direction: what an ICP-refined registration (sequential or loop closure) measured.
+Matrix6d cloud_surface_information(const geometry::GeometricFeatures& features, double sigma_m) {
+  const auto count = static_cast<std::size_t>(features.cloud_count);
+  return (1.0 / (sigma_m * sigma_m)) *
+         surface_information({features.cloud_points.data(), count}, {features.cloud_normals.data(), count});
+}
+
 }  // namespace
 
 MotionPrior camera_motion_prior(double x_m, double y_m, double yaw_rad, const Eigen::Matrix3d& planar_covariance,
@@ -422,11 +430,7 @@ MotionEstimate SlamLoop::fused_estimate(const geometry::GeometricFeatures& targe
       fused.T_target_source = refined.T_previous_current;
       fused.inliers = std::max(fused.inliers, refined.inliers);
       fused.icp_inliers = refined.icp_inliers;
-      const auto cloud_count = static_cast<std::size_t>(current_geometric.cloud_count);
-      const double icp_weight = 1.0 / (config_.graph_icp_sigma_m * config_.graph_icp_sigma_m);
-      fused.information = feature_information +
-                          icp_weight * surface_information({current_geometric.cloud_points.data(), cloud_count},
-                                                           {current_geometric.cloud_normals.data(), cloud_count});
+      fused.information = feature_information + cloud_surface_information(current_geometric, config_.graph_icp_sigma_m);
       result.inliers = fused.inliers;
       result.icp_refined = true;
     }
@@ -1128,10 +1132,7 @@ void SlamLoop::close_loops(int slot, FrameResult& result) {
       // As a sequential ICP-refined edge: what the surfaces fix, plus the feature inliers where
       // they fit their noise. A closure the view leaves free in a direction (a robot that turned
       // back to face the same plain corridor) then does not pull the chain along it.
-      const auto cloud_count = static_cast<std::size_t>(current_geometric_->cloud_count);
-      edge.information = surface_information({current_geometric_->cloud_points.data(), cloud_count},
-                                             {current_geometric_->cloud_normals.data(), cloud_count}) /
-                         (config_.graph_icp_sigma_m * config_.graph_icp_sigma_m);
+      edge.information = cloud_surface_information(*current_geometric_, config_.graph_icp_sigma_m);
       if (estimate.noise_scale <= config_.fused_max_noise_scale) {
         edge.information += correspondence_information(estimate.T_target_source, source_points_, target_points_,
                                                        correspondence_sigma_m_) /
