@@ -93,6 +93,13 @@ double mahalanobis_sq(const Vector6d& residual, const Matrix6d& covariance) {
   return residual.dot(factor.solve(residual));
 }
 
+// Inverse of a symmetric positive-definite 6×6 (an information or covariance matrix), symmetric
+// to the last bit so that it can be inverted back and added up.
+Matrix6d symmetric_inverse(const Matrix6d& matrix) {
+  const Matrix6d inverse = matrix.llt().solve(Matrix6d::Identity());
+  return 0.5 * (inverse + inverse.transpose());
+}
+
 // The point-to-plane information of a frame's sampled cloud at `sigma_m` per fully constraining
 // direction: what an ICP-refined registration (sequential or loop closure) measured.
 Matrix6d cloud_surface_information(const geometry::GeometricFeatures& features, double sigma_m) {
@@ -691,6 +698,8 @@ FrameResult SlamLoop::process(const hal::RgbdFrame& frame, const MotionPrior* pr
   if (config_.mode == Mode::kGeometric) return process_geometric(frame, prior);
   FrameResult result;
   result.wheels.prior_given = prior != nullptr;
+  chain_valid_ = true;
+  chain_restarted_ = false;
   auto stage_start = Clock::now();
   const ImageSource source = choose_source(frame);
   const cv::Mat* image = feature_image(frame, source);
@@ -748,6 +757,8 @@ FrameResult SlamLoop::process(const hal::RgbdFrame& frame, const MotionPrior* pr
     result.status = FrameStatus::kFirstFrame;
     result.T_world_cam = Eigen::Isometry3d::Identity();
     new_reference = true;
+    current_covariance_.setZero();
+    step_covariance_.setZero();
     finish_frame(frame, have_depth, Eigen::Isometry3d::Identity(), nullptr, result);
   } else {
     const TrackedFrame& previous = frames_[static_cast<std::size_t>(previous_)];
@@ -855,12 +866,23 @@ FrameResult SlamLoop::process(const hal::RgbdFrame& frame, const MotionPrior* pr
       result.failure_reason = reason;
       new_reference = false;  // the reference stays: the next frame that sees it snaps back
     }
+    chain_covariance(target, target == &reference ? reference_covariance_ : previous_covariance_, result);
     finish_frame(frame, have_depth, previous.T_world_cam, prior, result);
   }
   tracked.T_world_cam = result.T_world_cam;
+  if (chain_restarted_ && !new_reference && previous_ >= 0) {
+    // The reference is older than the key-frame this frame became: its pose relative to the
+    // key-frame is the inverse of this frame's registration, T_K_r = (T_r_K·exp(b))⁻¹ =
+    // T_K_r·exp(−Ad(T_r_K)·b).
+    const Matrix6d carry =
+        adjoint(frames_[static_cast<std::size_t>(reference_)].T_world_cam.inverse() * result.T_world_cam);
+    reference_covariance_ = carry * step_covariance_ * carry.transpose();
+  }
+  previous_covariance_ = current_covariance_;
   if (new_reference) {
     reference_ = current;
     reference_inliers_ = 0;
+    reference_covariance_ = current_covariance_;
   }
   previous_ = current;
   result.new_reference = new_reference;
@@ -963,24 +985,29 @@ void SlamLoop::store_keyframe(const hal::RgbdFrame& frame, bool have_depth, Fram
       edge.from = previous.node;
       edge.to = keyframe.node;
       edge.T_from_to = T_previous_current;
-      if (accepted_information_.any()) {
-        // Modelled by the registration, with one match's rotation information and a hundredth of
-        // its translation information as a floor: what the surfaces leave free must not make the
-        // graph singular.
-        edge.information = accepted_information_ + graph::information_from_matches(
-                                                       1, config_.graph_match_sigma_deg * M_PI / 180.0,
-                                                       10.0 * config_.graph_match_sigma_m);
+      if (chain_valid_) {
+        // As uncertain as the chain of registrations from the previous key-frame: a direction
+        // one weak registration on the way left to the motion model (along a plain corridor) is
+        // weak in the edge, so a loop closure's correction goes there (corridor loop, seed 1, no
+        // wheels: ATE with loop closure 0.0589 m with the key-frame's own registration's
+        // information, 0.0582 m with the chain's).
+        edge.information = symmetric_inverse(current_covariance_);
+      } else if (accepted_information_.any()) {
+        edge.information = accepted_information_ + sequential_information_floor();
       } else {
         edge.information = registration_information(std::max(result.inliers, config_.min_inliers), result.noise_scale);
       }
       edge.kind = graph::EdgeKind::kSequential;
       (void)graph_.add_edge(edge);
+      add_planar_edge(previous.node, keyframe.node, T_previous_current);
       add_wheel_edge(previous.node, keyframe.node);
     }
   }
   wheel_since_keyframe_ = Eigen::Isometry3d::Identity();
   wheel_since_keyframe_covariance_.setZero();
   wheel_since_keyframe_valid_ = true;
+  current_covariance_.setZero();
+  chain_restarted_ = true;
   keyframe.path_m = path_m_;
   if (have_depth) add_keyframe_to_map(frame, result.T_world_cam, &keyframe);
   latest_keyframe_slot_ = slot;
@@ -997,6 +1024,36 @@ void SlamLoop::accumulate_wheel_motion(const MotionPrior* prior) {
   const Matrix6d to_keyframe = adjoint(wheel_since_keyframe_);
   wheel_since_keyframe_covariance_ += to_keyframe * prior->covariance * to_keyframe.transpose();
   wheel_since_keyframe_ = rigid(wheel_since_keyframe_ * prior->T_previous_current);
+}
+
+void SlamLoop::add_planar_edge(int from_node, int to_node, const Eigen::Isometry3d& T_from_to) {
+  if (!differential_drive_ || config_.graph_planar_sigma_m <= 0.0 || config_.graph_planar_sigma_deg <= 0.0) return;
+  // A differential-drive base stays on the floor: between two key-frames its height, roll and
+  // pitch do not change. The measurement is the registered motion of the base with those three
+  // set to zero; forward, sideways and heading carry no information. In the base frame the
+  // error is Ad(T_base_cam)·ξ of the camera's, so Ω_cam = Ad(T_base_cam)ᵀ·Ω_base·Ad(T_base_cam).
+  const Eigen::Isometry3d T_cam_base = T_base_cam_.inverse();
+  const Eigen::Isometry3d base_motion = T_base_cam_ * T_from_to * T_cam_base;
+  Eigen::Isometry3d planar = Eigen::Isometry3d::Identity();
+  const Eigen::Vector3d forward = base_motion.linear().col(0);
+  const double heading = std::atan2(forward.y(), forward.x());
+  planar.linear() = Eigen::AngleAxisd(heading, Eigen::Vector3d::UnitZ()).toRotationMatrix();
+  planar.translation() << base_motion.translation().x(), base_motion.translation().y(), 0.0;
+  Vector6d base_information;
+  const double tilt_rad = config_.graph_planar_sigma_deg * M_PI / 180.0;
+  // The free three get a floor of 1 rad and 10 m, which keeps the information invertible (the
+  // graph composes edges through covariances when it retires a node).
+  base_information << 1.0 / (tilt_rad * tilt_rad), 1.0 / (tilt_rad * tilt_rad), 1.0, 1e-2, 1e-2,
+      1.0 / (config_.graph_planar_sigma_m * config_.graph_planar_sigma_m);
+  const Matrix6d to_base = adjoint(T_base_cam_);
+  graph::Edge edge;
+  edge.from = from_node;
+  edge.to = to_node;
+  edge.T_from_to = rigid(T_cam_base * planar * T_base_cam_);
+  edge.information = to_base.transpose() * base_information.asDiagonal() * to_base;
+  edge.information = 0.5 * (edge.information + edge.information.transpose()).eval();
+  edge.kind = graph::EdgeKind::kSequential;
+  (void)graph_.add_edge(edge);
 }
 
 void SlamLoop::add_wheel_edge(int from_node, int to_node) {
@@ -1017,6 +1074,33 @@ void SlamLoop::add_wheel_edge(int from_node, int to_node) {
   edge.information = 0.5 * (edge.information + edge.information.transpose()).eval();
   edge.kind = graph::EdgeKind::kWheels;
   (void)graph_.add_edge(edge);
+}
+
+graph::Matrix6d SlamLoop::sequential_information_floor() const {
+  // One match's rotation information and a hundredth of its translation information: what the
+  // surfaces leave free must not make the graph singular.
+  return graph::information_from_matches(1, config_.graph_match_sigma_deg * M_PI / 180.0,
+                                         10.0 * config_.graph_match_sigma_m);
+}
+
+void SlamLoop::chain_covariance(const TrackedFrame* target, const Matrix6d& target_covariance,
+                                const FrameResult& result) {
+  if (target == nullptr) {
+    // Not registered: the pose is extrapolated or the wheels'; a frame registered against it
+    // later inherits no more than one floor's worth of confidence.
+    step_covariance_ = symmetric_inverse(sequential_information_floor());
+    current_covariance_ = previous_covariance_ + step_covariance_;
+    return;
+  }
+  const Matrix6d information =
+      (accepted_information_.any()
+           ? Matrix6d(accepted_information_)
+           : registration_information(std::max(result.inliers, config_.min_inliers), result.noise_scale)) +
+      sequential_information_floor();
+  step_covariance_ = symmetric_inverse(information);
+  // T_K_c·exp(ξ_c) = T_K_t·exp(ξ_t)·T_t_c·exp(ξ) gives ξ_c = Ad(T_t_c⁻¹)·ξ_t + ξ.
+  const Matrix6d carry = adjoint((target->T_world_cam.inverse() * result.T_world_cam).inverse());
+  current_covariance_ = carry * target_covariance * carry.transpose() + step_covariance_;
 }
 
 graph::Matrix6d SlamLoop::registration_information(int inliers, double noise_scale) const {

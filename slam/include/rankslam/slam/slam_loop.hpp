@@ -300,6 +300,16 @@ class SlamLoop {
   void store_keyframe(const hal::RgbdFrame& frame, bool have_depth, FrameResult& result);
   /// Pose-graph information of a registration from its inlier count and noise scale.
   [[nodiscard]] graph::Matrix6d registration_information(int inliers, double noise_scale) const;
+  /// Information added to every sequential registration so that a direction the surfaces leave
+  /// free keeps the graph non-singular.
+  [[nodiscard]] graph::Matrix6d sequential_information_floor() const;
+  /// On a differential-drive base: an edge holding the base's height, roll and pitch between
+  /// two key-frames (graph_planar_sigma_*).
+  void add_planar_edge(int from_node, int to_node, const Eigen::Isometry3d& T_from_to);
+  /// Sets current_covariance_: the frame registered against `target` (null: not registered),
+  /// whose pose covariance relative to the latest key-frame is `target_covariance`.
+  void chain_covariance(const TrackedFrame* target, const Eigen::Matrix<double, 6, 6>& target_covariance,
+                        const FrameResult& result);
   /// Registers the new key-frame against nearby stored ones; adds accepted closures to the graph.
   void close_loops(int slot, FrameResult& result);
   /// Submits a pending graph and applies a finished optimisation (moving the tracking state by
@@ -407,6 +417,18 @@ class SlamLoop {
   /// Information of the current frame's accepted registration where it was modelled (see
   /// MotionEstimate::information): the weight of a sequential edge the frame starts.
   Eigen::Matrix<double, 6, 6> accepted_information_ = Eigen::Matrix<double, 6, 6>::Zero();
+  /// Covariances, relative to the latest key-frame, of the current, previous and reference
+  /// frames' poses (right perturbation in each frame): every registration adds its own on top of
+  /// its target's, so a sequential edge is as uncertain as the chain of registrations it spans
+  /// (see chain_covariance). Used while `chain_valid_` (the fused and photometric modes).
+  Eigen::Matrix<double, 6, 6> current_covariance_ = Eigen::Matrix<double, 6, 6>::Zero();
+  Eigen::Matrix<double, 6, 6> previous_covariance_ = Eigen::Matrix<double, 6, 6>::Zero();
+  Eigen::Matrix<double, 6, 6> reference_covariance_ = Eigen::Matrix<double, 6, 6>::Zero();
+  /// The current frame's own registration covariance, in its frame.
+  Eigen::Matrix<double, 6, 6> step_covariance_ = Eigen::Matrix<double, 6, 6>::Zero();
+  bool chain_valid_ = false;
+  /// The current frame became a stored key-frame (the chain restarts at it).
+  bool chain_restarted_ = false;
 
   /// Last compared frames' residuals from the prior (ring of wheel_gate_window_frames), for the
   /// window test: slip adds up frame after frame, noise only as its square root.
