@@ -698,7 +698,6 @@ FrameResult SlamLoop::process(const hal::RgbdFrame& frame, const MotionPrior* pr
   if (config_.mode == Mode::kGeometric) return process_geometric(frame, prior);
   FrameResult result;
   result.wheels.prior_given = prior != nullptr;
-  chain_valid_ = true;
   chain_restarted_ = false;
   auto stage_start = Clock::now();
   const ImageSource source = choose_source(frame);
@@ -985,15 +984,13 @@ void SlamLoop::store_keyframe(const hal::RgbdFrame& frame, bool have_depth, Fram
       edge.from = previous.node;
       edge.to = keyframe.node;
       edge.T_from_to = T_previous_current;
-      if (chain_valid_) {
+      if (config_.mode != Mode::kGeometric) {
         // As uncertain as the chain of registrations from the previous key-frame: a direction
         // one weak registration on the way left to the motion model (along a plain corridor) is
         // weak in the edge, so a loop closure's correction goes there (corridor loop, seed 1, no
         // wheels: ATE with loop closure 0.0589 m with the key-frame's own registration's
         // information, 0.0582 m with the chain's).
         edge.information = symmetric_inverse(current_covariance_);
-      } else if (accepted_information_.any()) {
-        edge.information = accepted_information_ + sequential_information_floor();
       } else {
         edge.information = registration_information(std::max(result.inliers, config_.min_inliers), result.noise_scale);
       }
@@ -1070,8 +1067,7 @@ void SlamLoop::add_wheel_edge(int from_node, int to_node) {
   edge.from = from_node;
   edge.to = to_node;
   edge.T_from_to = wheel_since_keyframe_;
-  edge.information = covariance.inverse();
-  edge.information = 0.5 * (edge.information + edge.information.transpose()).eval();
+  edge.information = symmetric_inverse(covariance);
   edge.kind = graph::EdgeKind::kWheels;
   (void)graph_.add_edge(edge);
 }
@@ -1089,7 +1085,7 @@ void SlamLoop::chain_covariance(const TrackedFrame* target, const Matrix6d& targ
     // Not registered: the pose is extrapolated or the wheels'; a frame registered against it
     // later inherits no more than one floor's worth of confidence.
     step_covariance_ = symmetric_inverse(sequential_information_floor());
-    current_covariance_ = previous_covariance_ + step_covariance_;
+    current_covariance_ = target_covariance + step_covariance_;
     return;
   }
   const Matrix6d information =

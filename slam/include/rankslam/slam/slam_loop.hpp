@@ -306,8 +306,9 @@ class SlamLoop {
   /// On a differential-drive base: an edge holding the base's height, roll and pitch between
   /// two key-frames (graph_planar_sigma_*).
   void add_planar_edge(int from_node, int to_node, const Eigen::Isometry3d& T_from_to);
-  /// Sets current_covariance_: the frame registered against `target` (null: not registered),
-  /// whose pose covariance relative to the latest key-frame is `target_covariance`.
+  /// Sets current_covariance_: the frame registered against `target`, whose pose covariance
+  /// relative to the latest key-frame is `target_covariance` (null: not registered, and
+  /// `target_covariance` is the previous frame's).
   void chain_covariance(const TrackedFrame* target, const Eigen::Matrix<double, 6, 6>& target_covariance,
                         const FrameResult& result);
   /// Registers the new key-frame against nearby stored ones; adds accepted closures to the graph.
@@ -420,13 +421,13 @@ class SlamLoop {
   /// Covariances, relative to the latest key-frame, of the current, previous and reference
   /// frames' poses (right perturbation in each frame): every registration adds its own on top of
   /// its target's, so a sequential edge is as uncertain as the chain of registrations it spans
-  /// (see chain_covariance). Used while `chain_valid_` (the fused and photometric modes).
+  /// (see chain_covariance). The fused and photometric modes; the geometric mode weights its
+  /// edges by inlier count.
   Eigen::Matrix<double, 6, 6> current_covariance_ = Eigen::Matrix<double, 6, 6>::Zero();
   Eigen::Matrix<double, 6, 6> previous_covariance_ = Eigen::Matrix<double, 6, 6>::Zero();
   Eigen::Matrix<double, 6, 6> reference_covariance_ = Eigen::Matrix<double, 6, 6>::Zero();
   /// The current frame's own registration covariance, in its frame.
   Eigen::Matrix<double, 6, 6> step_covariance_ = Eigen::Matrix<double, 6, 6>::Zero();
-  bool chain_valid_ = false;
   /// The current frame became a stored key-frame (the chain restarts at it).
   bool chain_restarted_ = false;
 
