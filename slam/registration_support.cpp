@@ -57,6 +57,27 @@ Eigen::Isometry3d drivable_step(const Eigen::Isometry3d& step_cam, const Eigen::
   return T_base_cam.inverse() * drivable * T_base_cam;
 }
 
+PlanarConstraint planar_constraint(const Eigen::Isometry3d& T_from_to, const Eigen::Isometry3d& T_base_cam,
+                                   double height_sigma_m, double tilt_sigma_rad) {
+  const Eigen::Isometry3d T_cam_base = T_base_cam.inverse();
+  const Eigen::Isometry3d base_motion = T_base_cam * T_from_to * T_cam_base;
+  Eigen::Isometry3d planar = Eigen::Isometry3d::Identity();
+  const Eigen::Vector3d forward = base_motion.linear().col(0);
+  planar.linear() = Eigen::AngleAxisd(std::atan2(forward.y(), forward.x()), Eigen::Vector3d::UnitZ()).toRotationMatrix();
+  planar.translation() << base_motion.translation().x(), base_motion.translation().y(), 0.0;
+  // In the base frame the error is Ad(T_base_cam)·ξ of the camera's, so
+  // Ω_cam = Ad(T_base_cam)ᵀ·Ω_base·Ad(T_base_cam).
+  Eigen::Matrix<double, 6, 1> base_information;
+  const double tilt_information = 1.0 / (tilt_sigma_rad * tilt_sigma_rad);
+  base_information << tilt_information, tilt_information, 1.0, 1e-2, 1e-2, 1.0 / (height_sigma_m * height_sigma_m);
+  const Matrix6d to_base = adjoint(T_base_cam);
+  PlanarConstraint constraint;
+  constraint.T_from_to = T_cam_base * planar * T_base_cam;
+  constraint.information = to_base.transpose() * base_information.asDiagonal() * to_base;
+  constraint.information = 0.5 * (constraint.information + constraint.information.transpose()).eval();
+  return constraint;
+}
+
 MotionBelief combine(const MotionBelief& prior, const MotionBelief& measurement) {
   const Eigen::Isometry3d offset = prior.mean.inverse() * measurement.mean;
   const Eigen::AngleAxisd rotation(offset.rotation());

@@ -1026,29 +1026,15 @@ void SlamLoop::accumulate_wheel_motion(const MotionPrior* prior) {
 void SlamLoop::add_planar_edge(int from_node, int to_node, const Eigen::Isometry3d& T_from_to) {
   if (!differential_drive_ || config_.graph_planar_sigma_m <= 0.0 || config_.graph_planar_sigma_deg <= 0.0) return;
   // A differential-drive base stays on the floor: between two key-frames its height, roll and
-  // pitch do not change. The measurement is the registered motion of the base with those three
-  // set to zero; forward, sideways and heading carry no information. In the base frame the
-  // error is Ad(T_base_cam)·ξ of the camera's, so Ω_cam = Ad(T_base_cam)ᵀ·Ω_base·Ad(T_base_cam).
-  const Eigen::Isometry3d T_cam_base = T_base_cam_.inverse();
-  const Eigen::Isometry3d base_motion = T_base_cam_ * T_from_to * T_cam_base;
-  Eigen::Isometry3d planar = Eigen::Isometry3d::Identity();
-  const Eigen::Vector3d forward = base_motion.linear().col(0);
-  const double heading = std::atan2(forward.y(), forward.x());
-  planar.linear() = Eigen::AngleAxisd(heading, Eigen::Vector3d::UnitZ()).toRotationMatrix();
-  planar.translation() << base_motion.translation().x(), base_motion.translation().y(), 0.0;
-  Vector6d base_information;
-  const double tilt_rad = config_.graph_planar_sigma_deg * M_PI / 180.0;
-  // The free three get a floor of 1 rad and 10 m, which keeps the information invertible (the
-  // graph composes edges through covariances when it retires a node).
-  base_information << 1.0 / (tilt_rad * tilt_rad), 1.0 / (tilt_rad * tilt_rad), 1.0, 1e-2, 1e-2,
-      1.0 / (config_.graph_planar_sigma_m * config_.graph_planar_sigma_m);
-  const Matrix6d to_base = adjoint(T_base_cam_);
+  // pitch do not change. The graph composes edges through covariances when it retires a node,
+  // hence the floor on the free three (see planar_constraint).
+  const PlanarConstraint constraint = planar_constraint(T_from_to, T_base_cam_, config_.graph_planar_sigma_m,
+                                                        config_.graph_planar_sigma_deg * M_PI / 180.0);
   graph::Edge edge;
   edge.from = from_node;
   edge.to = to_node;
-  edge.T_from_to = rigid(T_cam_base * planar * T_base_cam_);
-  edge.information = to_base.transpose() * base_information.asDiagonal() * to_base;
-  edge.information = 0.5 * (edge.information + edge.information.transpose()).eval();
+  edge.T_from_to = rigid(constraint.T_from_to);
+  edge.information = constraint.information;
   edge.kind = graph::EdgeKind::kSequential;
   (void)graph_.add_edge(edge);
 }

@@ -197,6 +197,60 @@ TEST(RegistrationSupport, DrivableStepKeepsForwardTravelAndTurnOnly) {
   EXPECT_NEAR(std::atan2(R(1, 0), R(0, 0)) * 180.0 / M_PI, 2.0, 0.05);
 }
 
+// ξ = (rotation vector, translation) of T_measured⁻¹·T_actual, the graph's edge error, and its
+// cost under `information`.
+double edge_cost(const Eigen::Isometry3d& T_measured, const Eigen::Isometry3d& T_actual, const Matrix6d& information) {
+  const Eigen::Isometry3d off = T_measured.inverse() * T_actual;
+  const Eigen::AngleAxisd rotation(off.rotation());
+  Eigen::Matrix<double, 6, 1> xi;
+  xi << rotation.angle() * rotation.axis(), off.translation();
+  return xi.dot(information * xi);
+}
+
+// Between two key-frames a differential-drive base keeps its height, roll and pitch: the
+// constraint's measurement drops the lift and tilt a registration adds and keeps the travel and
+// turn, a lift or tilt of one σ (in the base frame, whatever the mounting) costs 1, and the
+// travel and heading cost next to nothing.
+TEST(RegistrationSupport, PlanarConstraintHoldsTheBasesHeightAndTiltOnly) {
+  const Eigen::Isometry3d T_base_cam = corridor_mount();
+  Eigen::Isometry3d drive = turn_about(Eigen::Vector3d::UnitZ(), 10.0);
+  drive.translation() = Eigen::Vector3d(0.25, 0.02, 0.0);
+  Eigen::Isometry3d registered = drive * turn_about(Eigen::Vector3d::UnitX(), 1.0) * turn_about(Eigen::Vector3d::UnitY(), -0.5);
+  registered.translation().z() = 0.03;
+  const double height_sigma_m = 0.005;
+  const double tilt_sigma_rad = 0.2 * M_PI / 180.0;
+  const PlanarConstraint constraint =
+      planar_constraint(T_base_cam.inverse() * registered * T_base_cam, T_base_cam, height_sigma_m, tilt_sigma_rad);
+
+  const Eigen::Isometry3d measured_base = T_base_cam * constraint.T_from_to * T_base_cam.inverse();
+  EXPECT_NEAR(measured_base.translation().x(), 0.25, 1e-12);
+  EXPECT_NEAR(measured_base.translation().y(), 0.02, 1e-12);
+  EXPECT_NEAR(measured_base.translation().z(), 0.0, 1e-12);
+  const Eigen::Matrix3d R = measured_base.rotation();
+  EXPECT_NEAR(R(2, 2), 1.0, 1e-12);
+  EXPECT_NEAR(std::atan2(R(1, 0), R(0, 0)) * 180.0 / M_PI, 10.0, 0.02);
+  EXPECT_LT((constraint.information - constraint.information.transpose()).norm(), 1e-9 * constraint.information.norm());
+
+  // A deviation D of the base at the later key-frame moves the camera motion to T·T_cam_base·D·T_base_cam.
+  const auto deviated = [&](const Eigen::Isometry3d& base_deviation) {
+    return Eigen::Isometry3d(constraint.T_from_to * T_base_cam.inverse() * base_deviation * T_base_cam);
+  };
+  Eigen::Isometry3d lift = Eigen::Isometry3d::Identity();
+  lift.translation().z() = height_sigma_m;
+  EXPECT_NEAR(edge_cost(constraint.T_from_to, deviated(lift), constraint.information), 1.0, 1e-9);
+  for (const Eigen::Vector3d& axis : {Eigen::Vector3d(Eigen::Vector3d::UnitX()), Eigen::Vector3d(Eigen::Vector3d::UnitY())}) {
+    const Eigen::Isometry3d tilt = turn_about(axis, tilt_sigma_rad * 180.0 / M_PI);
+    EXPECT_NEAR(edge_cost(constraint.T_from_to, deviated(tilt), constraint.information), 1.0, 0.01) << axis.transpose();
+  }
+  Eigen::Isometry3d travel = Eigen::Isometry3d::Identity();
+  travel.translation() = Eigen::Vector3d(0.1, 0.1, 0.0);
+  EXPECT_LT(edge_cost(constraint.T_from_to, deviated(travel), constraint.information), 1e-3);
+  EXPECT_LT(edge_cost(constraint.T_from_to, deviated(turn_about(Eigen::Vector3d::UnitZ(), 1.0)), constraint.information),
+            1e-3);
+  // Invertible, so the graph can compose it through covariances.
+  EXPECT_GT(Eigen::SelfAdjointEigenSolver<Matrix6d>(constraint.information).eigenvalues().minCoeff(), 0.0);
+}
+
 // Two beliefs on a motion meet where their information weighs them: equal information halfway,
 // and a direction only one of them informs follows that one.
 TEST(RegistrationSupport, CombinedBeliefsMeetWhereTheirInformationWeighsThem) {

@@ -48,6 +48,19 @@ inline constexpr double kInlierSigmas = 3.0;
 /// (about base z); its sideways slide, height, roll and pitch are set to zero.
 [[nodiscard]] Eigen::Isometry3d drivable_step(const Eigen::Isometry3d& step_cam, const Eigen::Isometry3d& T_base_cam);
 
+/// What a differential-drive base's floor says about the camera motion T_from_to between two
+/// key-frames: the base's height, roll and pitch do not change. `T_from_to` is the measurement,
+/// the registered motion with those three of the base's set to zero; `information` (over ξ on
+/// the right, in the later camera's frame) holds them with `height_sigma_m` and `tilt_sigma_rad`
+/// and gives forward travel, sideways motion and heading a floor only (1 rad, 10 m), which keeps
+/// it invertible.
+struct PlanarConstraint {
+  Eigen::Isometry3d T_from_to = Eigen::Isometry3d::Identity();
+  Matrix6d information = Matrix6d::Zero();
+};
+[[nodiscard]] PlanarConstraint planar_constraint(const Eigen::Isometry3d& T_from_to, const Eigen::Isometry3d& T_base_cam,
+                                                 double height_sigma_m, double tilt_sigma_rad);
+
 /// A Gaussian belief on a motion: its mean and its information on ξ, a small motion applied on the
 /// right of the mean (the current camera's frame).
 struct MotionBelief {
