@@ -20,6 +20,7 @@ std::string_view GeometryConfig::validate() const {
   });
   if (!bad.empty()) return bad;
   if (min_depth_m >= max_depth_m) return "min_depth_m";
+  if (icp_depth_limit_m() <= min_depth_m) return "icp_pass_through_margin_sigmas";
   if (min_voxel_leaf_m > max_voxel_leaf_m) return "min_voxel_leaf_m";
   switch (keypoint_method) {
     case KeypointMethod::kIs3d:

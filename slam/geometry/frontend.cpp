@@ -341,6 +341,7 @@ FrameRegistration GeometricFrontend::register_frames(const GeometricFeatures& pr
                           std::max(previous.voxel_leaf_m, current.voxel_leaf_m);
   coarse.min_inlier_fraction = config_.icp_min_inlier_fraction;
   coarse.max_curvature = static_cast<float>(config_.icp_max_curvature);
+  coarse.max_depth_m = static_cast<float>(config_.icp_depth_limit_m());
   if (config_.per_point_noise != 0) {
     coarse.depth_noise_per_m = static_cast<float>(config_.depth_noise_per_m);
     coarse.noise_floor_m = static_cast<float>(config_.lateral_sigma_m);

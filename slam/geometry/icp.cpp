@@ -79,8 +79,9 @@ void PlaneIcp::index_previous(const IcpCloud& previous) {
   const int n = static_cast<int>(previous.points.size());
   for (int i = 0; i < n; ++i) {
     const Eigen::Vector2f& px = previous.pixels[static_cast<std::size_t>(i)];
-    if (max_curvature_ > 0.0F && !previous.curvature.empty() &&
-        previous.curvature[static_cast<std::size_t>(i)] > max_curvature_) {
+    if ((max_curvature_ > 0.0F && !previous.curvature.empty() &&
+         previous.curvature[static_cast<std::size_t>(i)] > max_curvature_) ||
+        (max_depth_ > 0.0F && previous.points[static_cast<std::size_t>(i)].z() > max_depth_)) {
       point_cell_[static_cast<std::size_t>(i)] = -1;
       continue;
     }
@@ -127,6 +128,7 @@ int PlaneIcp::associate(const IcpCloud& previous, const IcpCloud& current,
           current.curvature[static_cast<std::size_t>(i)] > max_curvature_) {
         continue;
       }
+      if (max_depth_ > 0.0F && current.points[static_cast<std::size_t>(i)].z() > max_depth_) continue;
       const Eigen::Vector3f p = R * current.points[static_cast<std::size_t>(i)] + t;
       if (!(p.z() > 0.0F)) continue;
       const Eigen::Vector2f px = project(p);
@@ -190,6 +192,7 @@ int PlaneIcp::count_within(const IcpCloud& previous, const IcpCloud& current,
     return 0;
   }
   max_curvature_ = config.max_curvature;
+  max_depth_ = config.max_depth_m;
   index_previous(previous);
   const int n = static_cast<int>(current.points.size());
   const int stride = std::max(1, (n + config.max_points - 1) / std::max(config.max_points, 1));
@@ -229,6 +232,7 @@ IcpResult PlaneIcp::refine(const IcpCloud& previous, const IcpCloud& current,
     return result;
   }
   max_curvature_ = config.max_curvature;
+  max_depth_ = config.max_depth_m;
   index_previous(previous);
   const int n = static_cast<int>(current.points.size());
   const int stride = std::max(1, (n + config.max_points - 1) / std::max(config.max_points, 1));

@@ -99,6 +99,63 @@ TEST(PlaneIcpPrior, KeptWhereTheDataAreWeakAPriorNoLongerPullsWhereTheyMeasure) 
   EXPECT_NEAR(kept.T_previous_current.translation().x(), 0.03, 1e-3);
 }
 
+// A surface near the pass-through is measured nearer than it is (the cut keeps only the samples
+// whose noise fell short of it). Points deeper than the ICP's depth limit take no part: here a
+// far wall that appears to have come 1 cm nearer while the near one came the true 2 cm.
+TEST(PlaneIcpDepthLimit, PointsBeyondTheLimitTakeNoPart) {
+  PlaneIcp icp;
+  ASSERT_TRUE(icp.configure(testing::test_calibration(), 4000).empty());
+  const Wall near_previous(1.5F, icp);
+  const Wall near_current(1.48F, icp);
+  const Wall far_previous(3.0F, icp);
+  const Wall far_current(2.99F, icp);
+  // The near wall on the left half of the view, the far one on the right.
+  struct Cloud {
+    std::vector<Eigen::Vector3f> points;
+    std::vector<Eigen::Vector3f> normals;
+    std::vector<Eigen::Vector2f> pixels;
+    void add(const Wall& wall, bool left) {
+      for (std::size_t i = 0; i < wall.points.size(); ++i) {
+        if ((wall.pixels[i].x() < 320.0F) != left) continue;
+        points.push_back(wall.points[i]);
+        normals.push_back(wall.normals[i]);
+        pixels.push_back(wall.pixels[i]);
+      }
+    }
+    [[nodiscard]] IcpCloud cloud() const { return {points, normals, pixels, {}}; }
+  };
+  Cloud previous;
+  Cloud current;
+  previous.add(near_previous, true);
+  previous.add(far_previous, false);
+  current.add(near_current, true);
+  current.add(far_current, false);
+  int near_points = 0;
+  for (const Eigen::Vector3f& p : current.points) near_points += p.z() < 2.0F ? 1 : 0;
+  ASSERT_GT(near_points, 50);
+  ASSERT_GT(static_cast<int>(current.points.size()) - near_points, 50);
+
+  IcpConfig config = plain_config();
+  config.max_points = 4000;
+  config.prior.T_previous_current = Eigen::Isometry3d::Identity();
+  config.prior.information = Eigen::Matrix<double, 6, 6>::Identity() * 1e-2;
+  const Eigen::Isometry3d start = Eigen::Isometry3d::Identity();
+
+  const IcpResult both = icp.refine(previous.cloud(), current.cloud(), start, config);
+  ASSERT_TRUE(both.ok);
+  EXPECT_GT(both.associations, near_points);
+
+  config.max_depth_m = 2.5F;
+  const IcpResult near_only = icp.refine(previous.cloud(), current.cloud(), start, config);
+  ASSERT_TRUE(near_only.ok);
+  EXPECT_LE(near_only.associations, near_points);
+  EXPECT_NEAR(near_only.T_previous_current.translation().z(), 0.02, 1e-4);
+
+  // Nothing within the limit: no registration.
+  config.max_depth_m = 1.0F;
+  EXPECT_FALSE(icp.refine(previous.cloud(), current.cloud(), start, config).ok);
+}
+
 // Along a direction where the data carry λ times the prior's information the prior keeps
 // τ/(τ+λ) of its own; where they carry none it is whole.
 TEST(PlaneIcpPrior, PriorIsKeptInProportionToHowWeakTheDataAre) {

@@ -47,6 +47,8 @@ struct IcpConfig {
   double min_update = 1e-5;
   /// Points whose surface variation exceeds this take no part (0: no limit).
   float max_curvature = 0.0F;
+  /// Points deeper than this in their own frame take no part (0: no limit).
+  float max_depth_m = 0.0F;
   /// a of the depth noise σ = a·z² + noise_floor_m: residuals are ranked and weighted in units
   /// of it (0: plain metres, unweighted).
   float depth_noise_per_m = 0.0F;
@@ -122,6 +124,7 @@ class PlaneIcp {
   hal::CameraCalibration calibration_;
   int capacity_ = 0;
   float max_curvature_ = 0.0F;
+  float max_depth_ = 0.0F;
   int cells_x_ = 0;
   int cells_y_ = 0;
   std::vector<int> cell_start_;
