@@ -205,6 +205,7 @@ SlamLoop::SlamLoop(const SlamConfig& config, const hal::Calibration& calibration
   }
   if (config_.mode == Mode::kFused) {
     for (auto& tracked : frames_) tracked.geometric = geometric_.make_features();
+    if (config_.loop_max_candidates > 0) loop_search_geometric_ = geometric_.make_features();
     geometric_matches_ = geometric_.make_correspondences();
     if (config_.threads > 1) {
       if (const std::string error = companion_.start(); !error.empty()) {
@@ -931,6 +932,7 @@ void SlamLoop::finish_frame(const hal::RgbdFrame& frame, bool have_depth, const 
     ++keyframes_;
     store_keyframe(frame, have_depth, result);
   }
+  continue_loop_search(config_.loop_candidates_per_frame, result);
   if (latest_keyframe_slot_ >= 0) {
     const StoredKeyframe& keyframe = keyframe_store_.slot(latest_keyframe_slot_);
     result.keyframe_node = keyframe.node;
@@ -1008,7 +1010,9 @@ void SlamLoop::store_keyframe(const hal::RgbdFrame& frame, bool have_depth, Fram
   keyframe.path_m = path_m_;
   if (have_depth) add_keyframe_to_map(frame, result.T_world_cam, &keyframe);
   latest_keyframe_slot_ = slot;
-  if (result.status == FrameStatus::kTracking && keyframe.node >= 0) close_loops(slot, result);
+  // A search still under way for the previous key-frame ends before this one's starts.
+  continue_loop_search(0, result);
+  if (result.status == FrameStatus::kTracking && keyframe.node >= 0) start_loop_search(slot);
 }
 
 void SlamLoop::accumulate_wheel_motion(const MotionPrior* prior) {
@@ -1101,10 +1105,12 @@ graph::Matrix6d SlamLoop::registration_information(int inliers, double noise_sca
          variance_factor;
 }
 
-void SlamLoop::close_loops(int slot, FrameResult& result) {
+void SlamLoop::start_loop_search(int slot) {
+  loop_candidates_.clear();
+  loop_candidates_tried_ = loop_candidates_next_ = 0;
+  loop_search_slot_ = -1;
   if (config_.loop_max_candidates == 0) return;
   const StoredKeyframe& current = keyframe_store_.slot(slot);
-  loop_candidates_.clear();
   for (int i = 0; i < keyframe_store_.capacity(); ++i) {
     const StoredKeyframe& stored = keyframe_store_.slot(i);
     if (!stored.used || i == slot || stored.node < 0) continue;
@@ -1117,112 +1123,138 @@ void SlamLoop::close_loops(int slot, FrameResult& result) {
         rotation_deg(relative) > config_.loop_search_rotation_deg + config_.loop_drift_deg_per_m * travelled_m) {
       continue;
     }
-    loop_candidates_.emplace_back(distance_m, i);
+    loop_candidates_.push_back({distance_m, i, stored.sequence});
   }
-  const std::size_t tried = std::min(loop_candidates_.size(), static_cast<std::size_t>(config_.loop_max_candidates));
-  std::partial_sort(loop_candidates_.begin(), loop_candidates_.begin() + static_cast<std::ptrdiff_t>(tried),
-                    loop_candidates_.end());
-  const bool with_geometry = current_geometric_ != nullptr;
-  for (std::size_t c = 0; c < tried; ++c) {
-    StoredKeyframe& stored = keyframe_store_.slot(loop_candidates_[c].second);
-    const Eigen::Isometry3d predicted = stored.T_world_cam.inverse() * current.T_world_cam;
-    FrameResult scratch;
-    const MotionEstimate estimate = register_frames(
-        stored.photometric, stored.velocity, current.photometric, current.velocity, scratch, predicted, predicted,
-        with_geometry ? &stored.geometric : nullptr, with_geometry ? &current.geometric : nullptr, /*refine=*/false);
-    if (!estimate.ok || !estimate.T_target_source.matrix().allFinite()) continue;
-    const int photometric_inliers = with_geometry ? scratch.photometric_inliers : scratch.inliers;
-    const int geometric_inliers = with_geometry ? scratch.geometric_inliers : 0;
-    if (photometric_inliers + geometric_inliers < loop_threshold_.value()) continue;
-    // Where tracking needs the geometric ICP for its precision (photometric inliers few or poorly
-    // spread), a closure on descriptor matches alone is less precise than the chain it would
-    // correct (simulated zigzag-plain, fused ATE 0.027 m with such closures, 0.0007 m without;
-    // on the corridor loop they were 2-9 cm and 0.5-1.7 deg off): it is refined as tracking is,
-    // on the key-frame's stored cloud, the feature estimate holding what the view leaves free,
-    // and is not taken unrefined.
-    Eigen::Isometry3d T_stored_current = estimate.T_target_source;
-    bool refined_by_icp = false;
-    if (with_geometry && photometric_needs_refinement(config_.loop_icp_above_rotation_sigma_deg)) {
-      if (stored.geometric.cloud_count < 3 || current_geometric_ == nullptr) continue;
-      geometry::IcpPrior feature_prior;
-      feature_prior.T_previous_current = estimate.T_target_source;
-      feature_prior.information =
-          step_prior_information(estimate.T_target_source, Eigen::Isometry3d::Identity(), icp_prior_information_);
-      const geometry::FrameRegistration refined =
-          geometric_.register_frames(stored.geometric, *current_geometric_, estimate.T_target_source, feature_prior);
-      if (!refined.ok || refined.refined_from == geometry::RefinementStart::kNone ||
-          refined.icp_inliers < config_.min_icp_inliers) {
-        continue;
-      }
-      // Refinement that could not fix what the features left loose keeps their error.
-      if (least_information_ratio(refined.icp_information, feature_prior.information) <
-          config_.loop_icp_min_information_ratio) {
-        continue;
-      }
-      T_stored_current = refined.T_previous_current;
-      refined_by_icp = true;
-    }
-
-    // Pose consistency: a true closure corrects the drift accumulated since the candidate, no more.
-    const double travelled_m = current.path_m - stored.path_m;
-    const Eigen::Isometry3d correction = predicted.inverse() * T_stored_current;
-    if (correction.translation().norm() > config_.loop_max_correction_m + config_.loop_drift_per_m * travelled_m ||
-        rotation_deg(correction) > config_.loop_max_correction_deg + config_.loop_drift_deg_per_m * travelled_m) {
-      continue;
-    }
-    // Inlier geometry: the matches that fit must spread in two directions at least; matches on a
-    // line or in one small patch fit a wrong motion as well as the right one.
-    const Eigen::Isometry3f T = estimate.T_target_source.cast<float>();
-    Eigen::Vector3d sum = Eigen::Vector3d::Zero();
-    Eigen::Matrix3d sum_sq = Eigen::Matrix3d::Zero();
-    int inliers = 0;
-    for (std::size_t i = 0; i < source_points_.size(); ++i) {
-      const double residual = (T * source_points_[i] - target_points_[i]).norm();
-      if (residual > 3.0 * correspondence_sigma_m_[i]) continue;
-      const Eigen::Vector3d p = source_points_[i].cast<double>();
-      sum += p;
-      sum_sq += p * p.transpose();
-      ++inliers;
-    }
-    if (inliers < config_.min_inliers) continue;
-    const Eigen::Vector3d mean = sum / inliers;
-    const Eigen::Matrix3d covariance = sum_sq / inliers - mean * mean.transpose();
-    const Eigen::SelfAdjointEigenSolver<Eigen::Matrix3d> spread(covariance, Eigen::EigenvaluesOnly);
-    if (std::sqrt(std::max(0.0, spread.eigenvalues()(1))) < config_.loop_min_inlier_spread_m) continue;
-
-    graph::Edge edge;
-    edge.from = stored.node;
-    edge.to = current.node;
-    edge.T_from_to = rigid(T_stored_current);
-    if (refined_by_icp) {
-      // As a sequential ICP-refined edge: what the surfaces fix, plus the feature inliers where
-      // they fit their noise. A closure the view leaves free in a direction (a robot that turned
-      // back to face the same plain corridor) then does not pull the chain along it.
-      edge.information = cloud_surface_information(*current_geometric_, config_.graph_icp_sigma_m);
-      if (estimate.noise_scale <= config_.fused_max_noise_scale) {
-        edge.information += correspondence_information(estimate.T_target_source, source_points_, target_points_,
-                                                       correspondence_sigma_m_) /
-                            std::max(1.0, estimate.noise_scale * estimate.noise_scale);
-      }
-    } else {
-      edge.information = registration_information(photometric_inliers + geometric_inliers, estimate.noise_scale);
-    }
-    edge.kind = graph::EdgeKind::kLoopClosure;
-    if (!graph_.add_edge(edge)) continue;
-    ++stored.loop_closures;
-    ++keyframe_store_.slot(slot).loop_closures;
-    LoopClosure& logged = closure_log_[static_cast<std::size_t>(loop_closures_) % closure_log_.size()];
-    logged.stored_stamp_s = stored.stamp_s;
-    logged.current_stamp_s = current.stamp_s;
-    logged.T_stored_current = edge.T_from_to;
-    logged.photometric_inliers = photometric_inliers;
-    logged.geometric_inliers = geometric_inliers;
-    logged.threshold = loop_threshold_.value();
-    loop_threshold_.add(photometric_inliers, geometric_inliers);
-    ++loop_closures_;
-    result.loop_closure = true;
-    graph_pending_ = true;
+  if (loop_candidates_.empty()) return;
+  loop_candidates_tried_ = std::min(loop_candidates_.size(), static_cast<std::size_t>(config_.loop_max_candidates));
+  const auto tried_end = loop_candidates_.begin() + static_cast<std::ptrdiff_t>(loop_candidates_tried_);
+  std::partial_sort(loop_candidates_.begin(), tried_end, loop_candidates_.end());
+  loop_search_with_geometry_ = current_geometric_ != nullptr;
+  if (loop_search_with_geometry_ && !loop_search_geometric_.assign_from(*current_geometric_)) {
+    loop_candidates_tried_ = 0;  // set-up sizes both alike: not reached
+    return;
   }
+  loop_search_slot_ = slot;
+  loop_search_sequence_ = current.sequence;
+}
+
+void SlamLoop::continue_loop_search(int count, FrameResult& result) {
+  if (loop_search_slot_ < 0) return;
+  const StoredKeyframe& current = keyframe_store_.slot(loop_search_slot_);
+  for (int done = 0; loop_candidates_next_ < loop_candidates_tried_ && (count == 0 || done < count); ++done) {
+    const LoopCandidate& candidate = loop_candidates_[loop_candidates_next_++];
+    StoredKeyframe& stored = keyframe_store_.slot(candidate.slot);
+    // Either key-frame may have been retired from the store since the search started.
+    if (!current.used || current.sequence != loop_search_sequence_ || current.node < 0) break;
+    if (!stored.used || stored.sequence != candidate.sequence || stored.node < 0) continue;
+    try_loop_candidate(stored, result);
+    ++result.loop_candidates;
+  }
+  if (loop_candidates_next_ >= loop_candidates_tried_ || !current.used || current.sequence != loop_search_sequence_) {
+    loop_search_slot_ = -1;
+  }
+}
+
+void SlamLoop::try_loop_candidate(StoredKeyframe& stored, FrameResult& result) {
+  StoredKeyframe& current = keyframe_store_.slot(loop_search_slot_);
+  const bool with_geometry = loop_search_with_geometry_;
+  const Eigen::Isometry3d predicted = stored.T_world_cam.inverse() * current.T_world_cam;
+  FrameResult scratch;
+  const MotionEstimate estimate = register_frames(
+      stored.photometric, stored.velocity, current.photometric, current.velocity, scratch, predicted, predicted,
+      with_geometry ? &stored.geometric : nullptr, with_geometry ? &current.geometric : nullptr, /*refine=*/false);
+  if (!estimate.ok || !estimate.T_target_source.matrix().allFinite()) return;
+  const int photometric_inliers = with_geometry ? scratch.photometric_inliers : scratch.inliers;
+  const int geometric_inliers = with_geometry ? scratch.geometric_inliers : 0;
+  if (photometric_inliers + geometric_inliers < loop_threshold_.value()) return;
+  // Where tracking needs the geometric ICP for its precision (photometric inliers few or poorly
+  // spread), a closure on descriptor matches alone is less precise than the chain it would
+  // correct (simulated zigzag-plain, fused ATE 0.027 m with such closures, 0.0007 m without;
+  // on the corridor loop they were 2-9 cm and 0.5-1.7 deg off): it is refined as tracking is,
+  // on the key-frame's stored cloud, the feature estimate holding what the view leaves free,
+  // and is not taken unrefined.
+  Eigen::Isometry3d T_stored_current = estimate.T_target_source;
+  bool refined_by_icp = false;
+  if (with_geometry && photometric_needs_refinement(config_.loop_icp_above_rotation_sigma_deg)) {
+    if (stored.geometric.cloud_count < 3 || loop_search_geometric_.cloud_count < 3) return;
+    geometry::IcpPrior feature_prior;
+    feature_prior.T_previous_current = estimate.T_target_source;
+    feature_prior.information =
+        step_prior_information(estimate.T_target_source, Eigen::Isometry3d::Identity(), icp_prior_information_);
+    const geometry::FrameRegistration refined =
+        geometric_.register_frames(stored.geometric, loop_search_geometric_, estimate.T_target_source, feature_prior);
+    if (!refined.ok || refined.refined_from == geometry::RefinementStart::kNone ||
+        refined.icp_inliers < config_.min_icp_inliers) {
+      return;
+    }
+    // Refinement that could not fix what the features left loose keeps their error.
+    if (least_information_ratio(refined.icp_information, feature_prior.information) <
+        config_.loop_icp_min_information_ratio) {
+      return;
+    }
+    T_stored_current = refined.T_previous_current;
+    refined_by_icp = true;
+  }
+
+  // Pose consistency: a true closure corrects the drift accumulated since the candidate, no more.
+  const double travelled_m = current.path_m - stored.path_m;
+  const Eigen::Isometry3d correction = predicted.inverse() * T_stored_current;
+  if (correction.translation().norm() > config_.loop_max_correction_m + config_.loop_drift_per_m * travelled_m ||
+      rotation_deg(correction) > config_.loop_max_correction_deg + config_.loop_drift_deg_per_m * travelled_m) {
+    return;
+  }
+  // Inlier geometry: the matches that fit must spread in two directions at least; matches on a
+  // line or in one small patch fit a wrong motion as well as the right one.
+  const Eigen::Isometry3f T = estimate.T_target_source.cast<float>();
+  Eigen::Vector3d sum = Eigen::Vector3d::Zero();
+  Eigen::Matrix3d sum_sq = Eigen::Matrix3d::Zero();
+  int inliers = 0;
+  for (std::size_t i = 0; i < source_points_.size(); ++i) {
+    const double residual = (T * source_points_[i] - target_points_[i]).norm();
+    if (residual > 3.0 * correspondence_sigma_m_[i]) continue;
+    const Eigen::Vector3d p = source_points_[i].cast<double>();
+    sum += p;
+    sum_sq += p * p.transpose();
+    ++inliers;
+  }
+  if (inliers < config_.min_inliers) return;
+  const Eigen::Vector3d mean = sum / inliers;
+  const Eigen::Matrix3d covariance = sum_sq / inliers - mean * mean.transpose();
+  const Eigen::SelfAdjointEigenSolver<Eigen::Matrix3d> spread(covariance, Eigen::EigenvaluesOnly);
+  if (std::sqrt(std::max(0.0, spread.eigenvalues()(1))) < config_.loop_min_inlier_spread_m) return;
+
+  graph::Edge edge;
+  edge.from = stored.node;
+  edge.to = current.node;
+  edge.T_from_to = rigid(T_stored_current);
+  if (refined_by_icp) {
+    // As a sequential ICP-refined edge: what the surfaces fix, plus the feature inliers where
+    // they fit their noise. A closure the view leaves free in a direction (a robot that turned
+    // back to face the same plain corridor) then does not pull the chain along it.
+    edge.information = cloud_surface_information(loop_search_geometric_, config_.graph_icp_sigma_m);
+    if (estimate.noise_scale <= config_.fused_max_noise_scale) {
+      edge.information += correspondence_information(estimate.T_target_source, source_points_, target_points_,
+                                                     correspondence_sigma_m_) /
+                          std::max(1.0, estimate.noise_scale * estimate.noise_scale);
+    }
+  } else {
+    edge.information = registration_information(photometric_inliers + geometric_inliers, estimate.noise_scale);
+  }
+  edge.kind = graph::EdgeKind::kLoopClosure;
+  if (!graph_.add_edge(edge)) return;
+  ++stored.loop_closures;
+  ++current.loop_closures;
+  LoopClosure& logged = closure_log_[static_cast<std::size_t>(loop_closures_) % closure_log_.size()];
+  logged.stored_stamp_s = stored.stamp_s;
+  logged.current_stamp_s = current.stamp_s;
+  logged.T_stored_current = edge.T_from_to;
+  logged.photometric_inliers = photometric_inliers;
+  logged.geometric_inliers = geometric_inliers;
+  logged.threshold = loop_threshold_.value();
+  loop_threshold_.add(photometric_inliers, geometric_inliers);
+  ++loop_closures_;
+  result.loop_closure = true;
+  graph_pending_ = true;
 }
 
 const LoopClosure* SlamLoop::loop_closure(int index) const {
@@ -1281,6 +1313,10 @@ void SlamLoop::correct_tracking(const Eigen::Isometry3d& correction) {
 }
 
 void SlamLoop::finish() {
+  {
+    FrameResult ignored;
+    continue_loop_search(0, ignored);
+  }
   if (graph_pending_) {
     (void)optimizer_.wait_until_idle(std::chrono::minutes(5));
     FrameResult ignored;

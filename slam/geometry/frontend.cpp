@@ -39,6 +39,34 @@ void GeometricFeatures::reserve(int capacity, int cloud_capacity, int block_capa
   block_count = 0;
 }
 
+bool GeometricFeatures::assign_from(const GeometricFeatures& from) {
+  count = cloud_count = block_count = 0;
+  if (from.count > capacity() || from.cloud_count > static_cast<int>(cloud_points.size()) ||
+      from.block_count > static_cast<int>(block_points.size())) {
+    return false;
+  }
+  const auto n = static_cast<std::size_t>(from.count);
+  std::copy_n(from.points_cam.begin(), n, points_cam.begin());
+  std::copy_n(from.normals.begin(), n, normals.begin());
+  std::copy_n(from.descriptors.begin(), n * static_cast<std::size_t>(kShotSize), descriptors.begin());
+  std::copy_n(from.sigma_m.begin(), n, sigma_m.begin());
+  const auto m = static_cast<std::size_t>(from.cloud_count);
+  std::copy_n(from.cloud_points.begin(), m, cloud_points.begin());
+  std::copy_n(from.cloud_normals.begin(), m, cloud_normals.begin());
+  std::copy_n(from.cloud_pixels.begin(), m, cloud_pixels.begin());
+  std::copy_n(from.cloud_curvature.begin(), m, cloud_curvature.begin());
+  std::copy_n(from.block_points.begin(), static_cast<std::size_t>(from.block_count), block_points.begin());
+  count = from.count;
+  cloud_count = from.cloud_count;
+  block_count = from.block_count;
+  dense_points = from.dense_points;
+  sampled_points = from.sampled_points;
+  keypoint_candidates = from.keypoint_candidates;
+  resolution_m = from.resolution_m;
+  voxel_leaf_m = from.voxel_leaf_m;
+  return true;
+}
+
 void GeometricCorrespondences::reserve(int capacity) {
   const int n = std::max(0, capacity);
   current.setZero(3, n);

@@ -115,8 +115,12 @@ struct CountedRun {
   int tracked = 0;
   int keyframes = 0;
   int loop_closures = 0;
+  /// Loop-closure candidates registered, in all and at most in one frame.
+  int loop_candidates = 0;
+  int most_loop_candidates_in_a_frame = 0;
   /// Accepted closures whose log entry was gone when read after their frame, or did not name
-  /// that frame as the new key-frame, an earlier one as the stored one, and inliers that pass ε.
+  /// the latest key-frame as the new one, an earlier one as the stored one, and inliers that
+  /// pass ε.
   int closures_not_logged = 0;
   int closures_logged_wrong = 0;
   int graphs_applied = 0;
@@ -159,6 +163,7 @@ CountedRun run(SlamLoop& loop, const std::vector<hal::RgbdFrame>& frames, int wa
   const int retired_before = loop.retired_keyframes();
   std::optional<FrameResult> previous;
   int logged_closures = loop.loop_closures();
+  double latest_keyframe_stamp_s = -1.0;
   {
     const CountAllocations count;
     for (int i = warm_up; i < warm_up + counted; ++i) {
@@ -179,11 +184,15 @@ CountedRun run(SlamLoop& loop, const std::vector<hal::RgbdFrame>& frames, int wa
       out.tracked += result.status == FrameStatus::kTracking ? 1 : 0;
       out.keyframes += result.keyframe ? 1 : 0;
       out.loop_closures += result.loop_closure ? 1 : 0;
+      out.loop_candidates += result.loop_candidates;
+      out.most_loop_candidates_in_a_frame = std::max(out.most_loop_candidates_in_a_frame, result.loop_candidates);
+      if (result.keyframe) latest_keyframe_stamp_s = input.stamp_s;
       for (int index = logged_closures; index < loop.loop_closures(); ++index) {
         const LoopClosure* closure = loop.loop_closure(index);
         if (closure == nullptr) {
           ++out.closures_not_logged;
-        } else if (closure->current_stamp_s != input.stamp_s || !(closure->stored_stamp_s < input.stamp_s) ||
+        } else if (closure->current_stamp_s != latest_keyframe_stamp_s ||
+                   !(closure->stored_stamp_s < closure->current_stamp_s) ||
                    closure->photometric_inliers + closure->geometric_inliers < closure->threshold) {
           ++out.closures_logged_wrong;
         }
@@ -233,9 +242,12 @@ SlamConfig config_for(Mode mode) {
 constexpr int kWarmUpFrames = 2 * kLoopFrames;
 constexpr int kCountedFrames = 2000;
 
-void expect_steady_state_without_allocations(Mode mode, const std::vector<hal::RgbdFrame>& frames,
+void expect_steady_state_without_allocations(Mode mode, int loop_candidates_per_frame,
+                                             const std::vector<hal::RgbdFrame>& frames,
                                              const hal::Calibration& calibration) {
-  SlamLoop loop(config_for(mode), calibration);
+  SlamConfig config = config_for(mode);
+  config.loop_candidates_per_frame = loop_candidates_per_frame;
+  SlamLoop loop(config, calibration);
   loop.set_synchronous_backend(false);
   const CountedRun counted = run(loop, frames, kWarmUpFrames, kCountedFrames);
   std::printf("%s: warm-up of %d frames: %ld allocations on the tracking thread in %d frames, the last at frame %d\n",
@@ -253,6 +265,10 @@ void expect_steady_state_without_allocations(Mode mode, const std::vector<hal::R
   EXPECT_GT(counted.keyframes, 20);
   EXPECT_GT(counted.retired_keyframes, 0);
   EXPECT_GT(counted.loop_closures, 0);
+  // Spread over frames, no frame registers more candidates than asked.
+  if (loop_candidates_per_frame > 0) {
+    EXPECT_LE(counted.most_loop_candidates_in_a_frame, loop_candidates_per_frame);
+  }
   // Every closure is in the loop's log, read after its frame without allocating.
   EXPECT_EQ(counted.closures_not_logged, 0);
   EXPECT_EQ(counted.closures_logged_wrong, 0);
@@ -293,12 +309,41 @@ TEST_F(SlamLoopAllocations, CounterSeesThisThreadApartFromOthers) {
 
 TEST_F(SlamLoopAllocations, PhotometricSteadyStateAllocatesNothing) {
   ASSERT_TRUE(error_->empty()) << *error_;
-  expect_steady_state_without_allocations(Mode::kPhotometric, *frames_, recording_->calibration);
+  // One candidate per frame: the search carries over between frames.
+  expect_steady_state_without_allocations(Mode::kPhotometric, 1, *frames_, recording_->calibration);
 }
 
 TEST_F(SlamLoopAllocations, FusedSteadyStateAllocatesNothing) {
   ASSERT_TRUE(error_->empty()) << *error_;
-  expect_steady_state_without_allocations(Mode::kFused, *frames_, recording_->calibration);
+  // The default: all of a key-frame's candidates in its frame.
+  expect_steady_state_without_allocations(Mode::kFused, SlamConfig{}.loop_candidates_per_frame, *frames_,
+                                          recording_->calibration);
+}
+
+// All of a key-frame's candidates in its own frame (loop_candidates_per_frame 0) against one per
+// frame: the same candidates are registered either way, and closures found.
+TEST_F(SlamLoopAllocations, LoopCandidatesAreRegisteredOnePerFrameOrAllAtTheKeyframe) {
+  ASSERT_TRUE(error_->empty()) << *error_;
+  std::array<CountedRun, 2> counted;
+  for (const int per_frame : {0, 1}) {
+    SlamConfig config = config_for(Mode::kPhotometric);
+    config.loop_candidates_per_frame = per_frame;
+    SlamLoop loop(config, recording_->calibration);
+    loop.set_synchronous_backend(true);
+    counted[static_cast<std::size_t>(per_frame)] = run(loop, *frames_, 0, kWarmUpFrames);
+    const CountedRun& c = counted[static_cast<std::size_t>(per_frame)];
+    std::printf("loop_candidates_per_frame %d: %d key-frames, %d candidates registered, at most %d in a frame, %d "
+                "frames with a closure\n",
+                per_frame, c.keyframes, c.loop_candidates, c.most_loop_candidates_in_a_frame, c.loop_closures);
+    EXPECT_EQ(c.closures_not_logged, 0);
+    EXPECT_EQ(c.closures_logged_wrong, 0);
+    EXPECT_GT(c.loop_closures, 0);
+  }
+  EXPECT_GT(counted[0].most_loop_candidates_in_a_frame, 1);
+  EXPECT_EQ(counted[1].most_loop_candidates_in_a_frame, 1);
+  // The poses move a little differently once closures land a frame or two later: allow a
+  // key-frame's worth of difference.
+  EXPECT_NEAR(counted[1].loop_candidates, counted[0].loop_candidates, 3);
 }
 
 // Without loop closure no graph is ever submitted, so no solve runs: then no thread at all may

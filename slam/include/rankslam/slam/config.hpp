@@ -267,6 +267,11 @@ struct SlamConfig {
   double loop_drift_per_m = 0.1;
   double loop_drift_deg_per_m = 3.0;
   int loop_max_candidates = 3;
+  // Candidates registered per frame, from the key-frame's own frame on (0: all of them in the
+  // key-frame's frame). Each is a full fused registration: spread over the next frames they add
+  // one registration's time to a frame instead of loop_max_candidates', which lowers the longest
+  // frames and raises the median (more frames carry one; see README, replay).
+  int loop_candidates_per_frame = 0;
   // Adaptive threshold ε on k_P + k_G (ALGORITHMS.md §5): initial value until two closures exist
   // (lean low: the thesis saw 68-207), and T_ε.
   double loop_initial_threshold = 60.0;
@@ -431,6 +436,8 @@ struct SlamConfig {
           "translation drift allowed per metre travelled (widens the search and the consistency check)");
     visit("loop_drift_deg_per_m", loop_drift_deg_per_m, 0.0, 180.0, "deg/m", "rotation drift allowed per metre travelled");
     visit("loop_max_candidates", loop_max_candidates, 0, 100, "", "nearest candidates registered per key-frame (0: no loop closure)");
+    visit("loop_candidates_per_frame", loop_candidates_per_frame, 0, 100, "",
+          "loop-closure candidates registered per frame from the key-frame's own on (0: all in its frame)");
     visit("loop_initial_threshold", loop_initial_threshold, 0.0, 100000.0, "",
           "inliers (photometric + geometric) that close a loop until two closures set the adaptive threshold");
     visit("loop_threshold_deviations", loop_threshold_deviations, 0.0, 10.0, "",

@@ -140,8 +140,11 @@ struct FrameResult {
   int keyframe_node = -1;
   std::uint32_t keyframe_generation = 0;
   Eigen::Isometry3d T_keyframe_cam = Eigen::Isometry3d::Identity();
-  /// A loop closure was accepted at this frame (a key-frame).
+  /// A loop closure was accepted at this frame: a key-frame, or a frame after one while its
+  /// candidates are registered (SlamConfig::loop_candidates_per_frame).
   bool loop_closure = false;
+  /// Loop-closure candidates registered at this frame.
+  int loop_candidates = 0;
   /// An optimised pose graph was applied at this frame: the pose jumped by the map correction,
   /// which every tracked pose took: T_world_cam(after) = map_correction * T_world_cam(before).
   /// Identity when none was applied.
@@ -311,8 +314,14 @@ class SlamLoop {
   /// `target_covariance` is the previous frame's).
   void chain_covariance(const TrackedFrame* target, const Eigen::Matrix<double, 6, 6>& target_covariance,
                         const FrameResult& result);
-  /// Registers the new key-frame against nearby stored ones; adds accepted closures to the graph.
-  void close_loops(int slot, FrameResult& result);
+  /// Starts the loop-closure search of the new key-frame in `slot`: picks the nearest stored
+  /// key-frames as candidates and keeps the key-frame's whole geometric features for them.
+  void start_loop_search(int slot);
+  /// Registers up to `count` pending candidates of the search against its key-frame (all when
+  /// `count` is 0); adds accepted closures to the graph.
+  void continue_loop_search(int count, FrameResult& result);
+  /// Registers one candidate; adds it to the graph if it closes a loop.
+  void try_loop_candidate(StoredKeyframe& stored, FrameResult& result);
   /// Submits a pending graph and applies a finished optimisation (moving the tracking state by
   /// the correction).
   void run_backend(FrameResult& result);
@@ -474,8 +483,26 @@ class SlamLoop {
   Eigen::Matrix<double, 6, 6> wheel_since_keyframe_covariance_ = Eigen::Matrix<double, 6, 6>::Zero();
   bool wheel_since_keyframe_valid_ = false;
   bool synchronous_backend_ = false;
-  /// Candidate slots and their distances for one loop-closure search (set-up sized).
-  std::vector<std::pair<double, int>> loop_candidates_;
+  /// A stored key-frame near the searching one: the nearest are registered first.
+  struct LoopCandidate {
+    double distance_m = 0.0;
+    int slot = -1;
+    std::int64_t sequence = 0;  ///< the slot's key-frame when chosen (it may be retired since)
+    bool operator<(const LoopCandidate& other) const {
+      return distance_m < other.distance_m || (distance_m == other.distance_m && slot < other.slot);
+    }
+  };
+  /// The loop-closure search under way (set-up sized): its key-frame, its candidates, nearest
+  /// first, up to loop_max_candidates of them, and the next one to register.
+  std::vector<LoopCandidate> loop_candidates_;
+  std::size_t loop_candidates_tried_ = 0;
+  std::size_t loop_candidates_next_ = 0;
+  int loop_search_slot_ = -1;
+  std::int64_t loop_search_sequence_ = 0;
+  /// The searching key-frame's features as extracted (the store keeps a thinned cloud and no
+  /// block means, which the ICP refinement of a closure uses); count 0 without geometry.
+  geometry::GeometricFeatures loop_search_geometric_;
+  bool loop_search_with_geometry_ = false;
   /// The latest accepted closures, by index modulo the size (set-up sized).
   std::vector<LoopClosure> closure_log_;
 };

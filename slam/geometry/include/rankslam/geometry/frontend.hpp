@@ -95,6 +95,9 @@ struct GeometricFeatures {
   [[nodiscard]] std::span<const Eigen::Vector3f> points() const {
     return {points_cam.data(), static_cast<std::size_t>(count)};
   }
+  /// Copies the filled part of `from` (keypoints, cloud, block means, statistics) into this
+  /// one's room without allocating. False, and this one left empty, where it does not fit.
+  bool assign_from(const GeometricFeatures& from);
 };
 
 /// Geometric matches as 3D–3D correspondences for robust::RigidModel: column i of `current`
