@@ -205,7 +205,9 @@ SlamLoop::SlamLoop(const SlamConfig& config, const hal::Calibration& calibration
   }
   if (config_.mode == Mode::kFused) {
     for (auto& tracked : frames_) tracked.geometric = geometric_.make_features();
-    if (config_.loop_max_candidates > 0) loop_search_geometric_ = geometric_.make_features();
+    if (config_.loop_candidates_per_frame > 0 && config_.loop_candidates_per_frame < config_.loop_max_candidates) {
+      loop_search_copy_ = geometric_.make_features();  // a search may carry over into later frames
+    }
     geometric_matches_ = geometric_.make_correspondences();
     if (config_.threads > 1) {
       if (const std::string error = companion_.start(); !error.empty()) {
@@ -1109,6 +1111,7 @@ void SlamLoop::start_loop_search(int slot) {
   loop_candidates_.clear();
   loop_candidates_tried_ = loop_candidates_next_ = 0;
   loop_search_slot_ = -1;
+  loop_search_geometric_ = nullptr;
   if (config_.loop_max_candidates == 0) return;
   const StoredKeyframe& current = keyframe_store_.slot(slot);
   for (int i = 0; i < keyframe_store_.capacity(); ++i) {
@@ -1129,10 +1132,13 @@ void SlamLoop::start_loop_search(int slot) {
   loop_candidates_tried_ = std::min(loop_candidates_.size(), static_cast<std::size_t>(config_.loop_max_candidates));
   const auto tried_end = loop_candidates_.begin() + static_cast<std::ptrdiff_t>(loop_candidates_tried_);
   std::partial_sort(loop_candidates_.begin(), tried_end, loop_candidates_.end());
-  loop_search_with_geometry_ = current_geometric_ != nullptr;
-  if (loop_search_with_geometry_ && !loop_search_geometric_.assign_from(*current_geometric_)) {
-    loop_candidates_tried_ = 0;  // set-up sizes both alike: not reached
-    return;
+  // The frame's own features serve a search that ends in this frame; one that carries over into
+  // the next frames keeps a copy (the frame's buffer is reused).
+  const int per_frame = config_.loop_candidates_per_frame;
+  loop_search_geometric_ = current_geometric_;
+  if (current_geometric_ != nullptr && per_frame > 0 && loop_candidates_tried_ > static_cast<std::size_t>(per_frame)) {
+    if (!loop_search_copy_.assign_from(*current_geometric_)) return;  // set-up sizes both alike: not reached
+    loop_search_geometric_ = &loop_search_copy_;
   }
   loop_search_slot_ = slot;
   loop_search_sequence_ = current.sequence;
@@ -1140,24 +1146,23 @@ void SlamLoop::start_loop_search(int slot) {
 
 void SlamLoop::continue_loop_search(int count, FrameResult& result) {
   if (loop_search_slot_ < 0) return;
+  // Either key-frame may have been retired from the store since the search started.
   const StoredKeyframe& current = keyframe_store_.slot(loop_search_slot_);
-  for (int done = 0; loop_candidates_next_ < loop_candidates_tried_ && (count == 0 || done < count); ++done) {
+  const bool current_kept = current.used && current.sequence == loop_search_sequence_ && current.node >= 0;
+  for (int done = 0; current_kept && loop_candidates_next_ < loop_candidates_tried_ && (count == 0 || done < count);
+       ++done) {
     const LoopCandidate& candidate = loop_candidates_[loop_candidates_next_++];
     StoredKeyframe& stored = keyframe_store_.slot(candidate.slot);
-    // Either key-frame may have been retired from the store since the search started.
-    if (!current.used || current.sequence != loop_search_sequence_ || current.node < 0) break;
     if (!stored.used || stored.sequence != candidate.sequence || stored.node < 0) continue;
     try_loop_candidate(stored, result);
     ++result.loop_candidates;
   }
-  if (loop_candidates_next_ >= loop_candidates_tried_ || !current.used || current.sequence != loop_search_sequence_) {
-    loop_search_slot_ = -1;
-  }
+  if (!current_kept || loop_candidates_next_ >= loop_candidates_tried_) loop_search_slot_ = -1;
 }
 
 void SlamLoop::try_loop_candidate(StoredKeyframe& stored, FrameResult& result) {
   StoredKeyframe& current = keyframe_store_.slot(loop_search_slot_);
-  const bool with_geometry = loop_search_with_geometry_;
+  const bool with_geometry = loop_search_geometric_ != nullptr;
   const Eigen::Isometry3d predicted = stored.T_world_cam.inverse() * current.T_world_cam;
   FrameResult scratch;
   const MotionEstimate estimate = register_frames(
@@ -1176,13 +1181,13 @@ void SlamLoop::try_loop_candidate(StoredKeyframe& stored, FrameResult& result) {
   Eigen::Isometry3d T_stored_current = estimate.T_target_source;
   bool refined_by_icp = false;
   if (with_geometry && photometric_needs_refinement(config_.loop_icp_above_rotation_sigma_deg)) {
-    if (stored.geometric.cloud_count < 3 || loop_search_geometric_.cloud_count < 3) return;
+    if (stored.geometric.cloud_count < 3 || loop_search_geometric_->cloud_count < 3) return;
     geometry::IcpPrior feature_prior;
     feature_prior.T_previous_current = estimate.T_target_source;
     feature_prior.information =
         step_prior_information(estimate.T_target_source, Eigen::Isometry3d::Identity(), icp_prior_information_);
     const geometry::FrameRegistration refined =
-        geometric_.register_frames(stored.geometric, loop_search_geometric_, estimate.T_target_source, feature_prior);
+        geometric_.register_frames(stored.geometric, *loop_search_geometric_, estimate.T_target_source, feature_prior);
     if (!refined.ok || refined.refined_from == geometry::RefinementStart::kNone ||
         refined.icp_inliers < config_.min_icp_inliers) {
       return;
@@ -1231,7 +1236,7 @@ void SlamLoop::try_loop_candidate(StoredKeyframe& stored, FrameResult& result) {
     // As a sequential ICP-refined edge: what the surfaces fix, plus the feature inliers where
     // they fit their noise. A closure the view leaves free in a direction (a robot that turned
     // back to face the same plain corridor) then does not pull the chain along it.
-    edge.information = cloud_surface_information(loop_search_geometric_, config_.graph_icp_sigma_m);
+    edge.information = cloud_surface_information(*loop_search_geometric_, config_.graph_icp_sigma_m);
     if (estimate.noise_scale <= config_.fused_max_noise_scale) {
       edge.information += correspondence_information(estimate.T_target_source, source_points_, target_points_,
                                                      correspondence_sigma_m_) /

@@ -315,7 +315,8 @@ class SlamLoop {
   void chain_covariance(const TrackedFrame* target, const Eigen::Matrix<double, 6, 6>& target_covariance,
                         const FrameResult& result);
   /// Starts the loop-closure search of the new key-frame in `slot`: picks the nearest stored
-  /// key-frames as candidates and keeps the key-frame's whole geometric features for them.
+  /// key-frames as candidates and keeps the key-frame's whole geometric features for them where
+  /// the search carries over into later frames.
   void start_loop_search(int slot);
   /// Registers up to `count` pending candidates of the search against its key-frame (all when
   /// `count` is 0); adds accepted closures to the graph.
@@ -500,9 +501,10 @@ class SlamLoop {
   int loop_search_slot_ = -1;
   std::int64_t loop_search_sequence_ = 0;
   /// The searching key-frame's features as extracted (the store keeps a thinned cloud and no
-  /// block means, which the ICP refinement of a closure uses); count 0 without geometry.
-  geometry::GeometricFeatures loop_search_geometric_;
-  bool loop_search_with_geometry_ = false;
+  /// block means, which the ICP refinement of a closure uses): the frame's own while the search
+  /// ends in its frame, else loop_search_copy_; null without geometry.
+  const geometry::GeometricFeatures* loop_search_geometric_ = nullptr;
+  geometry::GeometricFeatures loop_search_copy_;
   /// The latest accepted closures, by index modulo the size (set-up sized).
   std::vector<LoopClosure> closure_log_;
 };
