@@ -440,7 +440,22 @@ MotionEstimate SlamLoop::fused_estimate(const geometry::GeometricFeatures& targe
       fused.T_target_source = refined.T_previous_current;
       fused.inliers = std::max(fused.inliers, refined.inliers);
       fused.icp_inliers = refined.icp_inliers;
-      fused.information = feature_information + cloud_surface_information(current_geometric, config_.graph_icp_sigma_m);
+      // The registration's information (and so its graph edge's) is what fixed the estimate: the
+      // surfaces, and in what they leave free the ICP's prior. On a differential-drive base that
+      // prior is the drivable step combined with the feature estimate, so it carries the
+      // features' information too. Counted as the surfaces alone, key-frame edges within a turn
+      // held up to 0.85 m of error along the view (corridor loop, recording seed 3), and a loop
+      // closure's correction went into the turns (recording seed 1 with loop closure: ATE
+      // 0.0435 m so, 0.0330 m with the prior). The prior is on a motion applied on the left, the
+      // edge's on the right.
+      const bool prior_holds_features = config_.fused_icp_base_kinematics != 0 && differential_drive_;
+      if (prior_holds_features) {
+        const Matrix6d to_left = adjoint(fused.T_target_source);
+        fused.information = cloud_surface_information(current_geometric, config_.graph_icp_sigma_m) +
+                            to_left.transpose() * prior.information * to_left;
+      } else {
+        fused.information = feature_information + cloud_surface_information(current_geometric, config_.graph_icp_sigma_m);
+      }
       result.inliers = fused.inliers;
       result.icp_refined = true;
     }
