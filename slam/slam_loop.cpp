@@ -441,20 +441,18 @@ MotionEstimate SlamLoop::fused_estimate(const geometry::GeometricFeatures& targe
       fused.inliers = std::max(fused.inliers, refined.inliers);
       fused.icp_inliers = refined.icp_inliers;
       // The registration's information (and so its graph edge's) is what fixed the estimate: the
-      // surfaces, and in what they leave free the ICP's prior. On a differential-drive base that
-      // prior is the drivable step combined with the feature estimate, so it carries the
-      // features' information too. Counted as the surfaces alone, key-frame edges within a turn
-      // held up to 0.85 m of error along the view (corridor loop, recording seed 3), and a loop
-      // closure's correction went into the turns (recording seed 1 with loop closure: ATE
-      // 0.0435 m so, 0.0330 m with the prior). The prior is on a motion applied on the left, the
-      // edge's on the right.
-      const bool prior_holds_features = config_.fused_icp_base_kinematics != 0 && differential_drive_;
-      if (prior_holds_features) {
+      // surfaces, and in what they leave free the ICP's prior. The base's drivable step carries
+      // the feature estimate's information too; the prior is on a motion applied on the left,
+      // the edge's on the right. Counted as the surfaces and features alone, key-frame edges
+      // within a turn held up to 0.85 m of error along the view (corridor loop, recording seed
+      // 3), and a loop closure's correction went into the turns (recording seed 1 with loop
+      // closure: ATE 0.0435 m that way, 0.0330 m with the prior).
+      fused.information = cloud_surface_information(current_geometric, config_.graph_icp_sigma_m);
+      if (icp_prior_is_drivable_step()) {
         const Matrix6d to_left = adjoint(fused.T_target_source);
-        fused.information = cloud_surface_information(current_geometric, config_.graph_icp_sigma_m) +
-                            to_left.transpose() * prior.information * to_left;
+        fused.information += to_left.transpose() * prior.information * to_left;
       } else {
-        fused.information = feature_information + cloud_surface_information(current_geometric, config_.graph_icp_sigma_m);
+        fused.information += feature_information;
       }
       result.inliers = fused.inliers;
       result.icp_refined = true;
@@ -486,7 +484,7 @@ geometry::IcpPrior SlamLoop::fused_icp_prior(const Eigen::Isometry3d& at_rest, c
                                              const MotionEstimate& feature, bool registered,
                                              const Matrix6d& feature_information) const {
   geometry::IcpPrior prior;
-  if (config_.fused_icp_base_kinematics == 0 || !differential_drive_) {
+  if (!icp_prior_is_drivable_step()) {
     prior.T_previous_current = registered ? feature.T_target_source : at_rest;
     // At rest, the step is the robot base's (through the camera mount): a base turning in place
     // swings the camera on its lever arm, 15 cm on the corridor robot, whose turns came out

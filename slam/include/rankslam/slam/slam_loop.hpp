@@ -278,6 +278,11 @@ class SlamLoop {
   /// The last fused registration's photometric estimate fixes the motion too poorly to go without
   /// the geometric ICP: too few inliers, or inliers that fix the rotation worse than the bound.
   [[nodiscard]] bool photometric_needs_refinement(double above_rotation_sigma_deg) const;
+  /// Whether fused mode's ICP prior is the base's drivable step combined with the feature
+  /// estimate (a differential-drive base with fused_icp_base_kinematics), not the estimate alone.
+  [[nodiscard]] bool icp_prior_is_drivable_step() const {
+    return config_.fused_icp_base_kinematics != 0 && differential_drive_;
+  }
   /// The ICP prior of fused mode where the view leaves the motion free (see
   /// SlamConfig::fused_icp_base_kinematics): `registered` tells whether `feature` is a registration.
   [[nodiscard]] geometry::IcpPrior fused_icp_prior(const Eigen::Isometry3d& at_rest, const Eigen::Isometry3d& predicted,
