@@ -130,6 +130,16 @@ int count_below(const double* values, int count, double bound) {
   return c0 + c1 + c2 + c3;
 }
 
+int keep_below(double* values, int count, double bound) {
+  int kept = 0;
+  for (int i = 0; i < count; ++i) {
+    const double value = values[i];
+    values[kept] = value;  // written whatever it is: no branch on the comparison
+    kept += value < bound ? 1 : 0;
+  }
+  return kept;
+}
+
 int count_at_most(const double* values, int count, double bound) {
   int inside = 0;
   for (int i = 0; i < count; ++i) inside += values[i] <= bound ? 1 : 0;

@@ -247,6 +247,39 @@ TEST_F(MsseRigid, ATeamGivesTheSerialEstimate) {
   EXPECT_GT(gated_total, 1000) << "the gate should have rejected hypotheses";
 }
 
+// The bounds a team's threads score under, played in an order a team may take: thread 1 scores
+// hypothesis 7 before thread 0 reaches hypothesis 3, which ties it. Hypothesis 3 must still get
+// through (the other thread's value bounds inclusively) and win on its index; a later tie on the
+// same thread must not get through (a thread's own value bounds strictly, as serially).
+TEST(MsseTeamLeastKth, BoundsAndMergeKeepTheSerialWinner) {
+  detail::TeamLeastKth team;
+  double bound = 0.0;
+  EXPECT_FALSE(team.bound(0, bound));
+  EXPECT_FALSE(team.bound(1, bound));
+  team.record(1, 7, 0.5);
+  ASSERT_TRUE(team.bound(0, bound));
+  EXPECT_GT(bound, 0.5) << "another thread's tie must get through";
+  EXPECT_EQ(bound, std::nextafter(0.5, 1.0));
+  team.record(0, 3, 0.5);
+  ASSERT_TRUE(team.bound(0, bound));
+  EXPECT_EQ(bound, 0.5) << "a later tie on the same thread must not";
+  ASSERT_TRUE(team.bound(1, bound));
+  EXPECT_EQ(bound, 0.5);
+  double kth = 0.0;
+  EXPECT_EQ(team.winner(2, kth), 3);
+  EXPECT_EQ(kth, 0.5);
+  // A strictly better value anywhere wins and bounds every thread.
+  team.record(1, 9, 0.25);
+  EXPECT_EQ(team.winner(2, kth), 9);
+  EXPECT_EQ(kth, 0.25);
+  ASSERT_TRUE(team.bound(0, bound));
+  EXPECT_EQ(bound, std::nextafter(0.25, 1.0));
+  // Threads past the team's size are not merged.
+  team.record(2, 1, 0.125);
+  EXPECT_EQ(team.winner(2, kth), 9);
+  EXPECT_EQ(team.winner(3, kth), 1);
+}
+
 TEST_F(MsseRigid, ScaleAndInliersAreConsistent) {
   const testing::Scene scene = scene_with(0.5, 3);
   const auto result = run(scene, MsseConfig{}, false);

@@ -186,6 +186,10 @@ void sort_residuals(RobustWorkspace& workspace, int n);
 /// Number of the first `count` values strictly below `bound`.
 [[nodiscard]] int count_below(const double* values, int count, double bound);
 
+/// Moves the first `count` values strictly below `bound` to the front, in their order, and
+/// returns how many there are; the values after them are left unspecified.
+[[nodiscard]] int keep_below(double* values, int count, double bound);
+
 /// Number of the first `count` values at most `bound`.
 [[nodiscard]] int count_at_most(const double* values, int count, double bound);
 
