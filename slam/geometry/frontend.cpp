@@ -200,16 +200,23 @@ GeometryStatus GeometricFrontend::extract(const cv::Mat& depth, KeypointMethod m
   double t1 = now_ms();
   times_.cloud_ms = t1 - t0;
   // The two neighbour grids of the cloud, the keypoints' and SHOT's (cells of the support radius
-  // make each query 2–3 cells a side), are built side by side: each build is a serial pass.
+  // make each query 2–3 cells a side), are serial passes; so is, in effect, IS3D's grouping of
+  // the normals by dominant orientation. The grouping goes beside the two grids.
   const auto radius = static_cast<float>(config_.shot_radius_m);
   const auto points = cloud_.point_span();
   const auto normals = cloud_.normal_span();
   bool support_grid_built = false;
+  const bool group_beside = method == KeypointMethod::kIs3d;
   parallel::for_each(team_, 2, [&](int task, int /*thread*/) {
     if (task == 0) {
-      support_grid_built = support_grid_.build(points, radius);
+      if (group_beside) {
+        detector_.group_orientations(cloud_);
+      } else {
+        detector_.prepare(method, cloud_);
+      }
     } else {
-      detector_.prepare(method, cloud_);
+      support_grid_built = support_grid_.build(points, radius);
+      if (group_beside) detector_.prepare(method, cloud_);
     }
   });
   keypoint_count_ = detector_.detect(method, cloud_, keypoints_, status);

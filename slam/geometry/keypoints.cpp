@@ -54,6 +54,13 @@ std::string KeypointDetector::configure(const GeometryConfig& config, int max_po
   return {};
 }
 
+void KeypointDetector::group_orientations(const SampledCloud& cloud) {
+  grouped_for_ = nullptr;
+  if (!configured() || cloud.size > max_points_ || cloud.size < 3) return;
+  group(cloud, nullptr);
+  grouped_for_ = &cloud;
+}
+
 void KeypointDetector::prepare(KeypointMethod method, const SampledCloud& cloud) {
   prepared_for_ = nullptr;
   if (!configured() || cloud.size > max_points_ || cloud.size < 3) return;
@@ -69,6 +76,7 @@ int KeypointDetector::detect(KeypointMethod method, const SampledCloud& cloud, s
     prepared = nullptr;
   }
   grid_prepared_ = prepared != nullptr;
+  grouped_ = std::exchange(grouped_for_, nullptr) == &cloud && method == KeypointMethod::kIs3d;
   stats_ = KeypointStats{};
   if (!configured()) {
     status = GeometryStatus::kNotConfigured;
@@ -281,9 +289,10 @@ int KeypointDetector::detect_ros(const SampledCloud& cloud, std::span<int> out,
   return count;
 }
 
-int KeypointDetector::detect_is3d(const SampledCloud& cloud, std::span<int> out,
-                                  GeometryStatus& status) {
+void KeypointDetector::group(const SampledCloud& cloud,
+                             robust::MsseTeamScratch<robust::OrientationModel::Params>* shared) {
   const int n = cloud.size;
+  grouping_ = KeypointStats{};
   int remaining = n;
   for (int i = 0; i < n; ++i) {
     remaining_[static_cast<std::size_t>(i)] = i;
@@ -297,7 +306,7 @@ int KeypointDetector::detect_is3d(const SampledCloud& cloud, std::span<int> out,
   const double max_scale_rad = config_.is3d_max_group_scale_deg * detail::kPi / 180.0;
   const int max_orientations =
       std::min(config_.is3d_max_orientations, KeypointStats::kMaxOrientations);
-  while (stats_.orientations < max_orientations && remaining >= min_group && remaining >= 3) {
+  while (grouping_.orientations < max_orientations && remaining >= min_group && remaining >= 3) {
     for (int k = 0; k < remaining; ++k) {
       normals_.col(k) =
           cloud.normals[static_cast<std::size_t>(remaining_[static_cast<std::size_t>(k)])].cast<double>();
@@ -306,13 +315,13 @@ int KeypointDetector::detect_is3d(const SampledCloud& cloud, std::span<int> out,
       break;
     }
     msse.seed = static_cast<std::uint64_t>(config_.seed) * 0x9e3779b97f4a7c15ULL +
-                static_cast<std::uint64_t>(stats_.orientations);
+                static_cast<std::uint64_t>(grouping_.orientations);
     const auto result = robust::estimate_msse(orientation_model_, msse, workspace_, {},
-                                              robust::AcceptAllHypotheses{}, &orientation_team_);
+                                              robust::AcceptAllHypotheses{}, shared);
     if (!result.ok() || result.inlier_count < min_group || result.scale > max_scale_rad) break;
-    const int o = stats_.orientations++;
-    stats_.orientation[static_cast<std::size_t>(o)] = result.model;
-    stats_.group_size[static_cast<std::size_t>(o)] = result.inlier_count;
+    const int o = grouping_.orientations++;
+    grouping_.orientation[static_cast<std::size_t>(o)] = result.model;
+    grouping_.group_size[static_cast<std::size_t>(o)] = result.inlier_count;
     int next = 0;
     for (int k = 0; k < remaining; ++k) {
       const int index = remaining_[static_cast<std::size_t>(k)];
@@ -325,7 +334,17 @@ int KeypointDetector::detect_is3d(const SampledCloud& cloud, std::span<int> out,
     std::swap(remaining_, next_remaining_);
     remaining = next;
   }
-  stats_.candidates = remaining;
+  grouping_.candidates = remaining;
+  remaining_count_ = remaining;
+}
+
+int KeypointDetector::detect_is3d(const SampledCloud& cloud, std::span<int> out,
+                                  GeometryStatus& status) {
+  const int n = cloud.size;
+  if (!grouped_) group(cloud, &orientation_team_);
+  grouped_ = false;
+  stats_ = grouping_;
+  const int remaining = remaining_count_;
 
   // Features are the points in no dominant group; when more than max_keypoints remain, they are
   // ranked (Is3dRanking) and the first max_keypoints kept.

@@ -168,6 +168,51 @@ TEST_F(KeypointTest, Is3dFindsTheRoomsThreeOrientationsAndKeepsTheRest) {
   expect_near_structure(count);
 }
 
+// IS3D's grouping done beforehand (as the front-end does, beside the neighbour grids) gives the
+// keypoints and statistics of the detection that groups by itself. It is used by the next
+// detection only, and only by an IS3D detection of the same cloud.
+TEST_F(KeypointTest, Is3dGroupingDoneBeforehandIsTheDetectionsOwn) {
+  GeometryStatus status = GeometryStatus::kNotConfigured;
+  const int count = detector_.detect(KeypointMethod::kIs3d, cloud_, keypoints_, status);
+  ASSERT_EQ(status, GeometryStatus::kOk);
+  const KeypointStats expected = detector_.stats();
+  const std::vector<int> expected_keypoints(keypoints_.begin(), keypoints_.begin() + count);
+  KeypointDetector detector;
+  ASSERT_EQ(detector.configure(config_, 16384), "");
+  const auto expect_as_alone = [&](const char* what) {
+    std::fill(keypoints_.begin(), keypoints_.end(), -1);
+    ASSERT_EQ(detector.detect(KeypointMethod::kIs3d, cloud_, keypoints_, status), count) << what;
+    ASSERT_EQ(status, GeometryStatus::kOk) << what;
+    const KeypointStats& stats = detector.stats();
+    EXPECT_EQ(stats.orientations, expected.orientations) << what;
+    EXPECT_EQ(stats.candidates, expected.candidates) << what;
+    for (int o = 0; o < expected.orientations; ++o) {
+      EXPECT_EQ(stats.orientation[static_cast<std::size_t>(o)], expected.orientation[static_cast<std::size_t>(o)]) << what;
+      EXPECT_EQ(stats.group_size[static_cast<std::size_t>(o)], expected.group_size[static_cast<std::size_t>(o)]) << what;
+    }
+    EXPECT_TRUE(std::equal(expected_keypoints.begin(), expected_keypoints.end(), keypoints_.begin())) << what;
+  };
+
+  detector.prepare(KeypointMethod::kIs3d, cloud_);
+  detector.group_orientations(cloud_);
+  expect_as_alone("grouped beforehand");
+
+  // A grouping of other normals, left unused, would give other keypoints.
+  const std::vector<Eigen::Vector3f> normals = cloud_.normals;
+  std::fill(cloud_.normals.begin(), cloud_.normals.end(), Eigen::Vector3f::UnitZ());
+  detector.group_orientations(cloud_);
+  cloud_.normals = normals;
+  (void)detector.detect(KeypointMethod::kRos, cloud_, keypoints_, status);
+  ASSERT_EQ(status, GeometryStatus::kOk);
+  expect_as_alone("grouped, then a ROS detection");
+
+  // Nor by a detection of another cloud.
+  SampledCloud other = cloud_;
+  std::fill(other.normals.begin(), other.normals.end(), Eigen::Vector3f::UnitZ());
+  detector.group_orientations(other);
+  expect_as_alone("grouped for another cloud");
+}
+
 TEST_F(KeypointTest, UniformSamplingSpreadsAboutMaxKeypoints) {
   GeometryStatus status = GeometryStatus::kNotConfigured;
   const int count = detector_.detect(KeypointMethod::kUniform, cloud_, keypoints_, status);

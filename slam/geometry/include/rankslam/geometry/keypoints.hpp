@@ -62,6 +62,13 @@ class KeypointDetector {
   /// uses no team). The next detect() of the same cloud uses it; any other detect() ignores it.
   void prepare(KeypointMethod method, const SampledCloud& cloud);
 
+  /// Optional, per frame, no allocation: IS3D's dominant-orientation grouping of this cloud,
+  /// which an IS3D detect() of it would do first, without the team, so that the caller can run
+  /// it beside prepare() and other work (its hypotheses gain little from a team: the serial loop
+  /// exits early on most of them). Concurrent with prepare() of the same cloud. The next detect()
+  /// of the same cloud with IS3D uses it; any other detect() ignores it.
+  void group_orientations(const SampledCloud& cloud);
+
   [[nodiscard]] const KeypointStats& stats() const { return stats_; }
   /// ROS saliency θ_i (mean squared normal angle to the N nearest sampled neighbours, rad²) of
   /// every cloud point as computed by the last ROS detection (an IS3D detection ranked by
@@ -73,6 +80,11 @@ class KeypointDetector {
  private:
   int detect_ros(const SampledCloud& cloud, std::span<int> out, GeometryStatus& status);
   int detect_is3d(const SampledCloud& cloud, std::span<int> out, GeometryStatus& status);
+  /// IS3D's grouping: dominant orientations into grouping_, the points in none of them into
+  /// remaining_ (remaining_count_ of them), assigned_ set for the grouped points. `shared`: the
+  /// team's scratch for the hypotheses, or null to run them on the calling thread alone.
+  void group(const SampledCloud& cloud,
+             robust::MsseTeamScratch<robust::OrientationModel::Params>* shared);
   int detect_uniform(const SampledCloud& cloud, std::span<int> out, GeometryStatus& status);
   /// θ of every cloud point, or only of those with wanted[i] != 0 (the rest keep stale values).
   void compute_saliency(const SampledCloud& cloud, const std::uint8_t* wanted = nullptr);
@@ -83,6 +95,10 @@ class KeypointDetector {
   PointGrid grid_;
   const SampledCloud* prepared_for_ = nullptr;  // the cloud grid_ was prepared for, if any
   bool grid_prepared_ = false;                   // this detection's saliency grid is built
+  const SampledCloud* grouped_for_ = nullptr;   // the cloud group_orientations() grouped, if any
+  bool grouped_ = false;                         // this detection's IS3D grouping is done
+  KeypointStats grouping_;                       // orientations and group sizes of the grouping
+  int remaining_count_ = 0;                      // points in no dominant group
   robust::RobustWorkspace workspace_;
   robust::OrientationModel orientation_model_{1};
   parallel::ThreadTeam* team_ = nullptr;
