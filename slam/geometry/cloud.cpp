@@ -54,21 +54,19 @@ inline bool point_at(const cv::Mat& depth, const slam::DepthCameraModel& camera,
 
 }  // namespace
 
+void BlockImage::Layer::reserve(std::size_t blocks) {
+  for (std::vector<float>* v : {&x, &y, &z, &weight, &centre_x, &centre_y, &centre_z, &half_x, &half_y, &half_z}) {
+    v->assign(blocks, 0.0F);
+  }
+}
+
 void BlockImage::reserve(int image_width, int image_height) {
   width = (std::max(0, image_width) + kBlock - 1) / kBlock;
   height = (std::max(0, image_height) + kBlock - 1) / kBlock;
   stride = width + kPad;
   const auto n = static_cast<std::size_t>(stride) * static_cast<std::size_t>(height);
-  x.assign(n, 0.0F);
-  y.assign(n, 0.0F);
-  z.assign(n, 0.0F);
-  weight.assign(n, 0.0F);
-  for (std::vector<float>* bound : {&x_min, &x_max, &y_min, &y_max, &z_min, &z_max}) {
-    bound->assign(n, 0.0F);
-  }
-  edge_weight.assign(n, 0.0F);
-  first_part.assign(n, -1);
-  parts.assign(2 * n, Part{});
+  front.reserve(n);
+  back.reserve(n);
 }
 
 namespace {
@@ -106,28 +104,80 @@ Lanes soft_share(const Lanes& near2, const Lanes& far2, float r2) {
   return ((r2 - near2) / (far2 - near2).max(1e-12F)).max(0.0F).min(1.0F);
 }
 
-// Squared distances from 0 to the nearest and farthest points of the interval [lo, hi], per lane.
-EIGEN_ALWAYS_INLINE void interval_range(const Lanes& lo, const Lanes& hi, Lanes& near2, Lanes& far2) {
-  const Lanes near = lo.max(0.0F).max(-hi);
-  const Lanes far = lo.abs().max(hi.abs());
+// Along one axis, the nearest and farthest distances from 0 to a bounding box's extent with
+// centre `centre` (relative to 0) and half extent `half`, squared and added.
+EIGEN_ALWAYS_INLINE void extent_range(const Lanes& centre, const Lanes& half, Lanes& near2, Lanes& far2) {
+  const Lanes distance = centre.abs();
+  const Lanes near = (distance - half).max(0.0F);
+  const Lanes far = distance + half;
   near2 += near * near;
   far2 += far * far;
 }
 
-// Adds a part of a depth-edge block by its share of the sphere.
-inline void add_part(const BlockImage::Part& part, const Eigen::Vector3f& center, float r2,
-                     Moments& m) {
-  if (part.weight == 0.0F) return;
-  const Eigen::Vector3f lo = part.min - center;
-  const Eigen::Vector3f hi = part.max - center;
-  const float near2 = lo.cwiseMax(Eigen::Vector3f::Zero()).cwiseMax(-hi).squaredNorm();
+// One layer's block b added to the moments by its share of the sphere (the strided window).
+inline void add_block(const BlockImage::Layer& layer, std::size_t b, const Eigen::Vector3f& center,
+                      float r2, Moments& m) {
+  const float w = layer.weight[b];
+  if (w == 0.0F) return;
+  const Eigen::Vector3f distance =
+      (Eigen::Vector3f(layer.centre_x[b], layer.centre_y[b], layer.centre_z[b]) - center).cwiseAbs();
+  const Eigen::Vector3f half(layer.half_x[b], layer.half_y[b], layer.half_z[b]);
+  const float near2 = (distance - half).cwiseMax(0.0F).squaredNorm();
   if (near2 > r2) return;
-  const float far2 = lo.cwiseAbs().cwiseMax(hi.cwiseAbs()).squaredNorm();
-  m.add(part.mean - center, part.weight * soft_share(near2, far2, r2));
+  const float far2 = (distance + half).squaredNorm();
+  m.add(layer.mean(b) - center, w * soft_share(near2, far2, r2));
 }
 
+// The 4 blocks of one layer from block b on, lanes past `valid` weighing nothing, added to the
+// lane sums by their shares of the sphere.
+struct LaneMoments {
+  Lanes n = Lanes::Zero(), sx = Lanes::Zero(), sy = Lanes::Zero(), sz = Lanes::Zero();
+  Lanes sxx = Lanes::Zero(), sxy = Lanes::Zero(), sxz = Lanes::Zero(), syy = Lanes::Zero(),
+        syz = Lanes::Zero(), szz = Lanes::Zero();
+
+  EIGEN_ALWAYS_INLINE void add(const BlockImage::Layer& layer, std::size_t b, const Eigen::Vector3f& center,
+                               float r2, const Lanes& valid) {
+    const Lanes w0 = Eigen::Map<const Lanes>(layer.weight.data() + b) * valid;
+    const Lanes dx = Eigen::Map<const Lanes>(layer.x.data() + b) - center.x();
+    const Lanes dy = Eigen::Map<const Lanes>(layer.y.data() + b) - center.y();
+    const Lanes dz = Eigen::Map<const Lanes>(layer.z.data() + b) - center.z();
+    Lanes near2 = Lanes::Zero();
+    Lanes far2 = Lanes::Zero();
+    extent_range(Eigen::Map<const Lanes>(layer.centre_x.data() + b) - center.x(),
+                 Eigen::Map<const Lanes>(layer.half_x.data() + b), near2, far2);
+    extent_range(Eigen::Map<const Lanes>(layer.centre_y.data() + b) - center.y(),
+                 Eigen::Map<const Lanes>(layer.half_y.data() + b), near2, far2);
+    extent_range(Eigen::Map<const Lanes>(layer.centre_z.data() + b) - center.z(),
+                 Eigen::Map<const Lanes>(layer.half_z.data() + b), near2, far2);
+    const Lanes w = w0 * soft_share(near2, far2, r2);
+    n += w;
+    sx += w * dx;
+    sy += w * dy;
+    sz += w * dz;
+    sxx += w * dx * dx;
+    sxy += w * dx * dy;
+    sxz += w * dx * dz;
+    syy += w * dy * dy;
+    syz += w * dy * dz;
+    szz += w * dz * dz;
+  }
+
+  void add_to(Moments& m) const {
+    m.n += n.sum();
+    m.sx += sx.sum();
+    m.sy += sy.sum();
+    m.sz += sz.sum();
+    m.sxx += sxx.sum();
+    m.sxy += sxy.sum();
+    m.sxz += sxz.sum();
+    m.syy += syy.sum();
+    m.syz += syz.sum();
+    m.szz += szz.sum();
+  }
+};
+
 #ifdef RANKSLAM_GEOMETRY_HAVE_AVX2_NORMALS
-__attribute__((target("avx2"))) float horizontal_sum(__m256 v) {
+__attribute__((target("avx2,fma"))) float horizontal_sum(__m256 v) {
   const __m128 lo = _mm256_castps256_ps128(v);
   const __m128 hi = _mm256_extractf128_ps(v, 1);
   __m128 s = _mm_add_ps(lo, hi);
@@ -136,28 +186,62 @@ __attribute__((target("avx2"))) float horizontal_sum(__m256 v) {
   return _mm_cvtss_f32(s);
 }
 
-// The unstrided window of organised_normal, 8 blocks of a row at a time (AVX2, chosen at run
-// time): the same sums as the portable 4-block loop there, in another order (normals within
-// 0.03° of it, test/unit/geometry normals_test). Cloud stage per frame on fr1_rpy_head
-// (perf_geometry): 8.0 → 7.1 ms.
-__attribute__((target("avx2"))) void window_moments_avx2(const BlockImage& blocks,
-                                                         const Eigen::Vector3f& center, int bu,
-                                                         int bv, int steps, float half_blocks,
-                                                         float r2, Moments& m) {
+// LaneMoments::add, 8 blocks at a time (AVX2 and FMA, chosen at run time): sums[] holds n, sx,
+// sy, sz, sxx, sxy, sxz, syy, syz, szz per lane.
+__attribute__((target("avx2,fma"), always_inline)) inline void add_blocks_avx2(
+    const BlockImage::Layer& layer, std::size_t b, const __m256 (&center)[3], __m256 radius2,
+    __m256 valid, __m256 (&sums)[10]) {
   const __m256 zero = _mm256_setzero_ps();
-  const __m256 sign = _mm256_set1_ps(-0.0F);
+  const __m256 magnitude = _mm256_castsi256_ps(_mm256_set1_epi32(0x7fffffff));
+  const std::array<const float*, 3> mean = {layer.x.data(), layer.y.data(), layer.z.data()};
+  const std::array<const float*, 3> centre = {layer.centre_x.data(), layer.centre_y.data(), layer.centre_z.data()};
+  const std::array<const float*, 3> half = {layer.half_x.data(), layer.half_y.data(), layer.half_z.data()};
+  const __m256 w0 = _mm256_and_ps(_mm256_loadu_ps(layer.weight.data() + b), valid);
+  __m256 d[3];
+  __m256 near2 = zero;
+  __m256 far2 = zero;
+  for (std::size_t axis = 0; axis < 3; ++axis) {
+    d[axis] = _mm256_sub_ps(_mm256_loadu_ps(mean[axis] + b), center[axis]);
+    const __m256 distance = _mm256_and_ps(_mm256_sub_ps(_mm256_loadu_ps(centre[axis] + b), center[axis]), magnitude);
+    const __m256 extent = _mm256_loadu_ps(half[axis] + b);
+    const __m256 near = _mm256_max_ps(_mm256_sub_ps(distance, extent), zero);
+    const __m256 far = _mm256_add_ps(distance, extent);
+    near2 = _mm256_fmadd_ps(near, near, near2);
+    far2 = _mm256_fmadd_ps(far, far, far2);
+  }
+  const __m256 share = _mm256_min_ps(
+      _mm256_max_ps(_mm256_div_ps(_mm256_sub_ps(radius2, near2),
+                                  _mm256_max_ps(_mm256_sub_ps(far2, near2), _mm256_set1_ps(1e-12F))),
+                    zero),
+      _mm256_set1_ps(1.0F));
+  const __m256 w = _mm256_mul_ps(w0, share);
+  const __m256 wd[3] = {_mm256_mul_ps(w, d[0]), _mm256_mul_ps(w, d[1]), _mm256_mul_ps(w, d[2])};
+  sums[0] = _mm256_add_ps(sums[0], w);
+  sums[1] = _mm256_add_ps(sums[1], wd[0]);
+  sums[2] = _mm256_add_ps(sums[2], wd[1]);
+  sums[3] = _mm256_add_ps(sums[3], wd[2]);
+  sums[4] = _mm256_fmadd_ps(wd[0], d[0], sums[4]);
+  sums[5] = _mm256_fmadd_ps(wd[0], d[1], sums[5]);
+  sums[6] = _mm256_fmadd_ps(wd[0], d[2], sums[6]);
+  sums[7] = _mm256_fmadd_ps(wd[1], d[1], sums[7]);
+  sums[8] = _mm256_fmadd_ps(wd[1], d[2], sums[8]);
+  sums[9] = _mm256_fmadd_ps(wd[2], d[2], sums[9]);
+}
+
+// The unstrided window of organised_normal, 8 blocks of a row at a time (AVX2 and FMA, chosen
+// at run time): the same sums as the portable 4-block loop there, in another order and with
+// fused multiply-adds (normals within 0.1° of it, test/unit/geometry normals_test). The far
+// parts of blocks across depth edges are added where a group of 8 has any.
+__attribute__((target("avx2,fma"))) void window_moments_avx2(const BlockImage& blocks,
+                                                              const Eigen::Vector3f& center, int bu,
+                                                              int bv, int steps, float half_blocks,
+                                                              float r2, Moments& m) {
   const __m256 lane_index = _mm256_setr_ps(0.0F, 1.0F, 2.0F, 3.0F, 4.0F, 5.0F, 6.0F, 7.0F);
   const __m256 radius2 = _mm256_set1_ps(r2);
-  const __m256 c[3] = {_mm256_set1_ps(center.x()), _mm256_set1_ps(center.y()),
-                       _mm256_set1_ps(center.z())};
-  const std::array<const float*, 3> mean = {blocks.x.data(), blocks.y.data(), blocks.z.data()};
-  const std::array<const float*, 3> low = {blocks.x_min.data(), blocks.y_min.data(), blocks.z_min.data()};
-  const std::array<const float*, 3> high = {blocks.x_max.data(), blocks.y_max.data(), blocks.z_max.data()};
-  __m256 n = zero, sx = zero, sy = zero, sz = zero;
-  __m256 sxx = zero, sxy = zero, sxz = zero, syy = zero, syz = zero, szz = zero;
+  const __m256 c[3] = {_mm256_set1_ps(center.x()), _mm256_set1_ps(center.y()), _mm256_set1_ps(center.z())};
+  __m256 sums[10];
+  for (__m256& sum : sums) sum = _mm256_setzero_ps();
   const float reach = half_blocks + 1.0F;
-  alignas(32) std::array<float, 8> near2_lanes{};
-  alignas(32) std::array<float, 8> edge_lanes{};
   for (int v = std::max(bv - steps, 0); v <= std::min(bv + steps, blocks.height - 1); ++v) {
     const auto dv = static_cast<float>(v - bv);
     const int span = static_cast<int>(std::sqrt(std::max(0.0F, reach * reach - dv * dv)));
@@ -167,62 +251,23 @@ __attribute__((target("avx2"))) void window_moments_avx2(const BlockImage& block
       const std::size_t b = blocks.index(u, v);
       const __m256 valid =
           _mm256_cmp_ps(lane_index, _mm256_set1_ps(static_cast<float>(u_hi - u + 1)), _CMP_LT_OQ);
-      const __m256 w0 = _mm256_and_ps(_mm256_loadu_ps(blocks.weight.data() + b), valid);
-      __m256 d[3];
-      __m256 near2 = zero;
-      __m256 far2 = zero;
-      for (std::size_t axis = 0; axis < 3; ++axis) {
-        d[axis] = _mm256_sub_ps(_mm256_loadu_ps(mean[axis] + b), c[axis]);
-        const __m256 lo = _mm256_sub_ps(_mm256_loadu_ps(low[axis] + b), c[axis]);
-        const __m256 hi = _mm256_sub_ps(_mm256_loadu_ps(high[axis] + b), c[axis]);
-        const __m256 near = _mm256_max_ps(_mm256_max_ps(lo, zero), _mm256_xor_ps(hi, sign));
-        const __m256 far = _mm256_max_ps(_mm256_andnot_ps(sign, lo), _mm256_andnot_ps(sign, hi));
-        near2 = _mm256_add_ps(near2, _mm256_mul_ps(near, near));
-        far2 = _mm256_add_ps(far2, _mm256_mul_ps(far, far));
-      }
-      const __m256 share = _mm256_min_ps(
-          _mm256_max_ps(_mm256_div_ps(_mm256_sub_ps(radius2, near2),
-                                      _mm256_max_ps(_mm256_sub_ps(far2, near2), _mm256_set1_ps(1e-12F))),
-                        zero),
-          _mm256_set1_ps(1.0F));
-      const __m256 w = _mm256_mul_ps(w0, share);
-      const __m256 wx = _mm256_mul_ps(w, d[0]);
-      const __m256 wy = _mm256_mul_ps(w, d[1]);
-      const __m256 wz = _mm256_mul_ps(w, d[2]);
-      n = _mm256_add_ps(n, w);
-      sx = _mm256_add_ps(sx, wx);
-      sy = _mm256_add_ps(sy, wy);
-      sz = _mm256_add_ps(sz, wz);
-      sxx = _mm256_add_ps(sxx, _mm256_mul_ps(wx, d[0]));
-      sxy = _mm256_add_ps(sxy, _mm256_mul_ps(wx, d[1]));
-      sxz = _mm256_add_ps(sxz, _mm256_mul_ps(wx, d[2]));
-      syy = _mm256_add_ps(syy, _mm256_mul_ps(wy, d[1]));
-      syz = _mm256_add_ps(syz, _mm256_mul_ps(wy, d[2]));
-      szz = _mm256_add_ps(szz, _mm256_mul_ps(wz, d[2]));
-      const __m256 edges = _mm256_loadu_ps(blocks.edge_weight.data() + b);
-      if (_mm256_movemask_ps(_mm256_cmp_ps(edges, zero, _CMP_GT_OQ)) != 0) {
-        _mm256_store_ps(near2_lanes.data(), near2);
-        _mm256_store_ps(edge_lanes.data(), edges);
-        for (int k = 0; k < 8 && u + k <= u_hi; ++k) {
-          if (edge_lanes[static_cast<std::size_t>(k)] > 0.0F && near2_lanes[static_cast<std::size_t>(k)] <= r2) {
-            const auto first = static_cast<std::size_t>(blocks.first_part[b + static_cast<std::size_t>(k)]);
-            add_part(blocks.parts[first], center, r2, m);
-            add_part(blocks.parts[first + 1], center, r2, m);
-          }
-        }
+      add_blocks_avx2(blocks.front, b, c, radius2, valid, sums);
+      const __m256 back = _mm256_and_ps(_mm256_loadu_ps(blocks.back.weight.data() + b), valid);
+      if (_mm256_movemask_ps(_mm256_cmp_ps(back, _mm256_setzero_ps(), _CMP_GT_OQ)) != 0) {
+        add_blocks_avx2(blocks.back, b, c, radius2, valid, sums);
       }
     }
   }
-  m.n += horizontal_sum(n);
-  m.sx += horizontal_sum(sx);
-  m.sy += horizontal_sum(sy);
-  m.sz += horizontal_sum(sz);
-  m.sxx += horizontal_sum(sxx);
-  m.sxy += horizontal_sum(sxy);
-  m.sxz += horizontal_sum(sxz);
-  m.syy += horizontal_sum(syy);
-  m.syz += horizontal_sum(syz);
-  m.szz += horizontal_sum(szz);
+  m.n += horizontal_sum(sums[0]);
+  m.sx += horizontal_sum(sums[1]);
+  m.sy += horizontal_sum(sums[2]);
+  m.sz += horizontal_sum(sums[3]);
+  m.sxx += horizontal_sum(sums[4]);
+  m.sxy += horizontal_sum(sums[5]);
+  m.sxz += horizontal_sum(sums[6]);
+  m.syy += horizontal_sum(sums[7]);
+  m.syz += horizontal_sum(sums[8]);
+  m.szz += horizontal_sum(sums[9]);
 }
 #endif
 
@@ -310,7 +355,7 @@ int organised_normal(const BlockImage& blocks, float fx, const Eigen::Vector3f& 
 
   Moments m;
 #ifdef RANKSLAM_GEOMETRY_HAVE_AVX2_NORMALS
-  const bool avx2 = best_kernel && parallel::cpu_has_avx2();
+  const bool avx2 = best_kernel && parallel::cpu_has_avx2_fma();
 #else
   const bool avx2 = false;
   (void)best_kernel;
@@ -322,9 +367,7 @@ int organised_normal(const BlockImage& blocks, float fx, const Eigen::Vector3f& 
   } else if (stride == 1) {
     // Rows of the window 4 blocks at a time (the rows' padding keeps the reads in bounds).
     const Lanes lane_index(0.0F, 1.0F, 2.0F, 3.0F);
-    Lanes n = Lanes::Zero(), sx = Lanes::Zero(), sy = Lanes::Zero(), sz = Lanes::Zero();
-    Lanes sxx = Lanes::Zero(), sxy = Lanes::Zero(), sxz = Lanes::Zero(), syy = Lanes::Zero(),
-          syz = Lanes::Zero(), szz = Lanes::Zero();
+    LaneMoments sums;
     // The radius' pixel footprint is a disc: each row of the window only as wide as the disc
     // there (plus a block for the blocks' own extent).
     const float reach = half_blocks + 1.0F;
@@ -335,52 +378,14 @@ int organised_normal(const BlockImage& blocks, float fx, const Eigen::Vector3f& 
       const int u_hi = std::min(bu + span, blocks.width - 1);
       for (int u = u_lo; u <= u_hi; u += 4) {
         const std::size_t b = blocks.index(u, v);
-        const Lanes w0 = Eigen::Map<const Lanes>(blocks.weight.data() + b) *
-                         (lane_index < static_cast<float>(u_hi - u + 1)).cast<float>();
-        const Lanes dx = Eigen::Map<const Lanes>(blocks.x.data() + b) - center.x();
-        const Lanes dy = Eigen::Map<const Lanes>(blocks.y.data() + b) - center.y();
-        const Lanes dz = Eigen::Map<const Lanes>(blocks.z.data() + b) - center.z();
-        Lanes near2 = Lanes::Zero();
-        Lanes far2 = Lanes::Zero();
-        interval_range(Eigen::Map<const Lanes>(blocks.x_min.data() + b) - center.x(),
-                       Eigen::Map<const Lanes>(blocks.x_max.data() + b) - center.x(), near2, far2);
-        interval_range(Eigen::Map<const Lanes>(blocks.y_min.data() + b) - center.y(),
-                       Eigen::Map<const Lanes>(blocks.y_max.data() + b) - center.y(), near2, far2);
-        interval_range(Eigen::Map<const Lanes>(blocks.z_min.data() + b) - center.z(),
-                       Eigen::Map<const Lanes>(blocks.z_max.data() + b) - center.z(), near2, far2);
-        const Lanes w = w0 * soft_share(near2, far2, r2);
-        n += w;
-        sx += w * dx;
-        sy += w * dy;
-        sz += w * dz;
-        sxx += w * dx * dx;
-        sxy += w * dx * dy;
-        sxz += w * dx * dz;
-        syy += w * dy * dy;
-        syz += w * dy * dz;
-        szz += w * dz * dz;
-        const Lanes edges = Eigen::Map<const Lanes>(blocks.edge_weight.data() + b);
-        if ((edges > 0.0F).any()) {
-          for (int k = 0; k < 4 && u + k <= u_hi; ++k) {
-            if (edges(k) > 0.0F && near2(k) <= r2) {
-              const auto first = static_cast<std::size_t>(blocks.first_part[b + static_cast<std::size_t>(k)]);
-              add_part(blocks.parts[first], center, r2, m);
-              add_part(blocks.parts[first + 1], center, r2, m);
-            }
-          }
+        const Lanes valid = (lane_index < static_cast<float>(u_hi - u + 1)).cast<float>();
+        sums.add(blocks.front, b, center, r2, valid);
+        if ((Eigen::Map<const Lanes>(blocks.back.weight.data() + b) * valid > 0.0F).any()) {
+          sums.add(blocks.back, b, center, r2, valid);
         }
       }
     }
-    m.n += n.sum();
-    m.sx += sx.sum();
-    m.sy += sy.sum();
-    m.sz += sz.sum();
-    m.sxx += sxx.sum();
-    m.sxy += sxy.sum();
-    m.sxz += sxz.sum();
-    m.syy += syy.sum();
-    m.syz += syz.sum();
-    m.szz += szz.sum();
+    sums.add_to(m);
   } else {
     // A near point's wide window: every stride-th block.
     for (int j = -steps; j <= steps; ++j) {
@@ -390,20 +395,8 @@ int organised_normal(const BlockImage& blocks, float fx, const Eigen::Vector3f& 
         const int u = bu + i * stride;
         if (u < 0 || u >= blocks.width) continue;
         const std::size_t b = blocks.index(u, v);
-        const Eigen::Vector3f lo = Eigen::Vector3f(blocks.x_min[b], blocks.y_min[b], blocks.z_min[b]) - center;
-        const Eigen::Vector3f hi = Eigen::Vector3f(blocks.x_max[b], blocks.y_max[b], blocks.z_max[b]) - center;
-        const float near2 = lo.cwiseMax(Eigen::Vector3f::Zero()).cwiseMax(-hi).squaredNorm();
-        if (near2 > r2) continue;
-        if (blocks.edge_weight[b] > 0.0F) {
-          const auto first = static_cast<std::size_t>(blocks.first_part[b]);
-          add_part(blocks.parts[first], center, r2, m);
-          add_part(blocks.parts[first + 1], center, r2, m);
-          continue;
-        }
-        const float w = blocks.weight[b];
-        if (w == 0.0F) continue;
-        const float far2 = lo.cwiseAbs().cwiseMax(hi.cwiseAbs()).squaredNorm();
-        m.add(blocks.mean(b) - center, w * soft_share(near2, far2, r2));
+        add_block(blocks.front, b, center, r2, m);
+        add_block(blocks.back, b, center, r2, m);
       }
     }
   }
@@ -855,25 +848,49 @@ void CloudPreprocessor::BlockSums::add_row(const float* x, const float* y, const
   }
 }
 
+namespace {
+
+// Block b of a layer: `count` points with the given sums and bounds.
+void set_block(BlockImage::Layer& layer, std::size_t b, float count, const Eigen::Vector3f& sum,
+               const Eigen::Vector3f& min, const Eigen::Vector3f& max) {
+  const Eigen::Vector3f mean = sum / count;
+  const Eigen::Vector3f centre = 0.5F * (min + max);
+  const Eigen::Vector3f half = 0.5F * (max - min);
+  layer.x[b] = mean.x();
+  layer.y[b] = mean.y();
+  layer.z[b] = mean.z();
+  layer.weight[b] = count;
+  layer.centre_x[b] = centre.x();
+  layer.centre_y[b] = centre.y();
+  layer.centre_z[b] = centre.z();
+  layer.half_x[b] = half.x();
+  layer.half_y[b] = half.y();
+  layer.half_z[b] = half.z();
+}
+
+}  // namespace
+
 void CloudPreprocessor::split_block(const cv::Mat& depth, int bu, int bv, float split_z,
                                     std::size_t block) {
   constexpr int kBlock = BlockImage::kBlock;
   const float metres_per_unit = camera_.metres(1);
   const auto min_m = static_cast<float>(config_.min_depth_m);
   const auto max_m = static_cast<float>(config_.max_depth_m);
-  BlockImage::Part near;
-  BlockImage::Part far;
-  const auto add = [](BlockImage::Part& part, const Eigen::Vector3f& p) {
-    if (part.weight == 0.0F) {
-      part.min = p;
-      part.max = p;
-    } else {
-      part.min = part.min.cwiseMin(p);
-      part.max = part.max.cwiseMax(p);
+  struct Part {
+    Eigen::Vector3f sum = Eigen::Vector3f::Zero();
+    Eigen::Vector3f min = Eigen::Vector3f::Constant(std::numeric_limits<float>::infinity());
+    Eigen::Vector3f max = Eigen::Vector3f::Constant(-std::numeric_limits<float>::infinity());
+    float count = 0.0F;
+
+    void add(const Eigen::Vector3f& p) {
+      sum += p;
+      min = min.cwiseMin(p);
+      max = max.cwiseMax(p);
+      count += 1.0F;
     }
-    part.mean += p;
-    part.weight += 1.0F;
   };
+  Part near;
+  Part far;
   for (int v = bv * kBlock; v < std::min((bv + 1) * kBlock, depth.rows); ++v) {
     const std::uint16_t* row = depth.ptr<std::uint16_t>(v);
     for (int u = bu * kBlock; u < std::min((bu + 1) * kBlock, depth.cols); ++u) {
@@ -881,17 +898,12 @@ void CloudPreprocessor::split_block(const cv::Mat& depth, int bu, int bv, float 
       if (raw == 0) continue;
       const float z = static_cast<float>(raw) * metres_per_unit;
       if (z < min_m || z > max_m) continue;
-      add(z <= split_z ? near : far, camera_.back_project(u, v, z));
+      (z <= split_z ? near : far).add(camera_.back_project(u, v, z));
     }
   }
-  for (BlockImage::Part* part : {&near, &far}) {
-    if (part->weight > 0.0F) part->mean /= part->weight;
-  }
-  // Each block has its own two slots, so that blocks can be split on any thread.
-  const std::size_t first = 2 * block;
-  blocks_.parts[first] = near;
-  blocks_.parts[first + 1] = far;
-  blocks_.first_part[block] = static_cast<std::int32_t>(first);
+  // Both parts hold points: the block's depths span more than its split leaves on either side.
+  set_block(blocks_.front, block, near.count, near.sum, near.min, near.max);
+  set_block(blocks_.back, block, far.count, far.sum, far.min, far.max);
 }
 
 GeometryStatus CloudPreprocessor::process(const cv::Mat& depth, SampledCloud& cloud) {
@@ -943,28 +955,19 @@ GeometryStatus CloudPreprocessor::process(const cv::Mat& depth, SampledCloud& cl
         const std::size_t k = static_cast<std::size_t>(bv) * static_cast<std::size_t>(block_sums_.stride) +
                               static_cast<std::size_t>(bu);
         const std::size_t b = blocks_.index(bu, bv);
-        blocks_.weight[b] = 0.0F;
-        blocks_.edge_weight[b] = 0.0F;
+        blocks_.front.weight[b] = 0.0F;
+        blocks_.back.weight[b] = 0.0F;
         if (block_sums_.count[k] == 0) continue;
         const auto count = static_cast<float>(block_sums_.count[k]);
-        const Eigen::Vector3f mean =
-            Eigen::Vector3f(block_sums_.sum_x[k], block_sums_.sum_y[k], block_sums_.sum_z[k]) / count;
-        blocks_.x[b] = mean.x();
-        blocks_.y[b] = mean.y();
-        blocks_.z[b] = mean.z();
-        blocks_.x_min[b] = block_sums_.min_x[k];
-        blocks_.x_max[b] = block_sums_.max_x[k];
-        blocks_.y_min[b] = block_sums_.min_y[k];
-        blocks_.y_max[b] = block_sums_.max_y[k];
-        blocks_.z_min[b] = block_sums_.min_z[k];
-        blocks_.z_max[b] = block_sums_.max_z[k];
-        const float max_span = 6.0F * block_span_per_m * mean.z() + 3e-3F * mean.z() * mean.z();
-        blocks_.first_part[b] = -1;
-        if (block_sums_.max_z[k] - block_sums_.min_z[k] > max_span) {
-          blocks_.edge_weight[b] = count;
-          split_block(depth, bu, bv, 0.5F * (block_sums_.min_z[k] + block_sums_.max_z[k]), b);
+        const Eigen::Vector3f sum(block_sums_.sum_x[k], block_sums_.sum_y[k], block_sums_.sum_z[k]);
+        const Eigen::Vector3f min(block_sums_.min_x[k], block_sums_.min_y[k], block_sums_.min_z[k]);
+        const Eigen::Vector3f max(block_sums_.max_x[k], block_sums_.max_y[k], block_sums_.max_z[k]);
+        const float mean_z = sum.z() / count;
+        const float max_span = 6.0F * block_span_per_m * mean_z + 3e-3F * mean_z * mean_z;
+        if (max.z() - min.z() > max_span) {
+          split_block(depth, bu, bv, 0.5F * (min.z() + max.z()), b);
         } else {
-          blocks_.weight[b] = count;
+          set_block(blocks_.front, b, count, sum, min, max);
         }
       }
     }

@@ -122,7 +122,7 @@ std::string GeometricFrontend::configure(const slam::DepthCameraModel& camera,
                      capacities.max_keypoints);
   if (std::string error = icp_.configure(
           camera_.calibration(),
-          std::max(capacities.max_sampled_points, static_cast<int>(preprocessor_.blocks().weight.size())),
+          std::max(capacities.max_sampled_points, static_cast<int>(preprocessor_.blocks().front.weight.size())),
           team);
       !error.empty()) {
     return error;
@@ -134,7 +134,7 @@ std::string GeometricFrontend::configure(const slam::DepthCameraModel& camera,
 GeometricFeatures GeometricFrontend::make_features() const {
   GeometricFeatures features;
   features.reserve(capacities_.max_keypoints, capacities_.max_sampled_points,
-                   static_cast<int>(preprocessor_.blocks().weight.size()));
+                   static_cast<int>(preprocessor_.blocks().front.weight.size()));
   return features;
 }
 
@@ -166,7 +166,7 @@ GeometryStatus GeometricFrontend::extract(const cv::Mat& depth, KeypointMethod m
       out.cloud_normals.size() < out.cloud_points.size() ||
       out.cloud_pixels.size() < out.cloud_points.size() ||
       out.cloud_curvature.size() < out.cloud_points.size() ||
-      out.block_points.size() < preprocessor_.blocks().weight.size()) {
+      out.block_points.size() < preprocessor_.blocks().front.weight.size()) {
     return GeometryStatus::kCapacityExceeded;
   }
   times_.cloud_ms = times_.keypoints_ms = times_.descriptors_ms = 0.0;
@@ -190,8 +190,8 @@ GeometryStatus GeometricFrontend::extract(const cv::Mat& depth, KeypointMethod m
     for (int v = 0; v < blocks.height; ++v) {
       for (int u = 0; u < blocks.width; ++u) {
         const std::size_t b = blocks.index(u, v);
-        if (blocks.weight[b] < kMinBlockPoints) continue;  // empty, sparse or across a depth edge
-        out.block_points[static_cast<std::size_t>(n++)] = blocks.mean(b);
+        if (blocks.front.weight[b] < kMinBlockPoints || blocks.across_depth_edge(b)) continue;
+        out.block_points[static_cast<std::size_t>(n++)] = blocks.front.mean(b);
       }
     }
     out.block_count = n;

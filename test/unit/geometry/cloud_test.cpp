@@ -118,7 +118,8 @@ TEST_F(CloudTest, VoxelCentroidsMatchABruteForceVoxelGrid) {
 
 // The 4 x 4 blocks' means, bounds and point counts (the normals' input) against a plain pass
 // over each block's pixels in pixel order, on a frame with holes and a width that is not a
-// whole number of 8-block groups: the vectorised rows and their portable tail alike.
+// whole number of 8-block groups: the vectorised rows and their portable tail alike. Blocks
+// across a depth edge are its two parts, split at the middle of their depths.
 TEST_F(CloudTest, BlockMeansAndBoundsMatchAPlainPassOverTheirPixels) {
   hal::CameraCalibration calibration = testing::test_calibration();
   calibration.width = 628;  // 157 blocks: 19 groups of 8 and 5 more
@@ -136,35 +137,60 @@ TEST_F(CloudTest, BlockMeansAndBoundsMatchAPlainPassOverTheirPixels) {
   const BlockImage& blocks = preprocessor.blocks();
   const auto max_m = static_cast<float>(config_.max_depth_m);
   int checked = 0;
+  int split = 0;
   for (int bv = 0; bv < blocks.height; ++bv) {
     for (int bu = 0; bu < blocks.width; ++bu) {
-      Eigen::Vector3f sum = Eigen::Vector3f::Zero();
-      Eigen::Vector3f lo = Eigen::Vector3f::Constant(std::numeric_limits<float>::infinity());
-      Eigen::Vector3f hi = -lo;
-      int count = 0;
+      std::vector<Eigen::Vector3f> points;
       for (int v = bv * BlockImage::kBlock; v < std::min((bv + 1) * BlockImage::kBlock, depth.rows); ++v) {
         for (int u = bu * BlockImage::kBlock; u < std::min((bu + 1) * BlockImage::kBlock, depth.cols); ++u) {
           const auto raw = depth.at<std::uint16_t>(v, u);
           if (raw == 0) continue;
           const float z = camera.metres(raw);
           if (z > max_m) continue;
-          const Eigen::Vector3f p = camera.back_project(u, v, z);
+          points.push_back(camera.back_project(u, v, z));
+        }
+      }
+      // The mean, centre and half extent of the points (nearer than split_z, or farther).
+      const auto expect_layer = [&](const BlockImage::Layer& layer, std::size_t b, float split_z, bool near) {
+        Eigen::Vector3f sum = Eigen::Vector3f::Zero();
+        Eigen::Vector3f lo = Eigen::Vector3f::Constant(std::numeric_limits<float>::infinity());
+        Eigen::Vector3f hi = -lo;
+        int count = 0;
+        for (const Eigen::Vector3f& p : points) {
+          if ((p.z() <= split_z) != near) continue;
           sum += p;
           lo = lo.cwiseMin(p);
           hi = hi.cwiseMax(p);
           ++count;
         }
-      }
+        ASSERT_EQ(layer.weight[b], static_cast<float>(count));
+        ASSERT_EQ(layer.mean(b), sum / static_cast<float>(count));
+        ASSERT_EQ(Eigen::Vector3f(layer.centre_x[b], layer.centre_y[b], layer.centre_z[b]), 0.5F * (lo + hi));
+        ASSERT_EQ(Eigen::Vector3f(layer.half_x[b], layer.half_y[b], layer.half_z[b]), 0.5F * (hi - lo));
+      };
       const std::size_t b = blocks.index(bu, bv);
-      ASSERT_EQ(blocks.weight[b] + blocks.edge_weight[b], static_cast<float>(count)) << "block " << bu << ", " << bv;
-      if (count == 0 || blocks.weight[b] == 0.0F) continue;  // empty, or split at a depth edge
-      const Eigen::Vector3f mean = sum / static_cast<float>(count);
-      ASSERT_EQ(blocks.mean(b), mean) << "block " << bu << ", " << bv;
-      ASSERT_EQ(Eigen::Vector3f(blocks.x_min[b], blocks.y_min[b], blocks.z_min[b]), lo);
-      ASSERT_EQ(Eigen::Vector3f(blocks.x_max[b], blocks.y_max[b], blocks.z_max[b]), hi);
-      ++checked;
+      SCOPED_TRACE(::testing::Message() << "block " << bu << ", " << bv);
+      ASSERT_EQ(blocks.front.weight[b] + blocks.back.weight[b], static_cast<float>(points.size()));
+      if (points.empty()) continue;
+      if (blocks.across_depth_edge(b)) {
+        // Split at the middle of its depths into a near part (front) and a far part (back).
+        float z_min = std::numeric_limits<float>::infinity();
+        float z_max = -z_min;
+        for (const Eigen::Vector3f& p : points) {
+          z_min = std::min(z_min, p.z());
+          z_max = std::max(z_max, p.z());
+        }
+        const float split_z = 0.5F * (z_min + z_max);
+        expect_layer(blocks.front, b, split_z, true);
+        expect_layer(blocks.back, b, split_z, false);
+        ++split;
+      } else {
+        expect_layer(blocks.front, b, std::numeric_limits<float>::infinity(), true);
+        ++checked;
+      }
     }
   }
+  EXPECT_GT(split, 0) << "the room corner's box should make depth edges";
   EXPECT_GT(checked, blocks.width * blocks.height / 2);
 }
 

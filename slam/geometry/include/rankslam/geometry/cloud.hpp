@@ -66,30 +66,32 @@ struct SampledCloud {
 struct BlockImage {
   static constexpr int kBlock = 4;
   static constexpr int kPad = 8;
+  /// One layer of blocks: each block's points by their mean, count and axis-aligned bounds (as
+  /// centre and half extent, the form the normals' sphere test takes).
+  struct Layer {
+    std::vector<float> x, y, z;  ///< mean point
+    std::vector<float> weight;   ///< points; 0 for none
+    std::vector<float> centre_x, centre_y, centre_z;
+    std::vector<float> half_x, half_y, half_z;
+
+    [[nodiscard]] Eigen::Vector3f mean(std::size_t b) const { return {x[b], y[b], z[b]}; }
+    /// Set-up (allocates): `blocks` blocks, all empty.
+    void reserve(std::size_t blocks);
+  };
   int width = 0;   ///< blocks per row
   int height = 0;  ///< block rows
   int stride = 0;  ///< width + kPad
-  std::vector<float> x, y, z;  ///< mean point
-  /// Points in the block; 0 for empty blocks and for blocks across a depth edge.
-  std::vector<float> weight;
-  /// Axis-aligned bounds of the block's points.
-  std::vector<float> x_min, x_max, y_min, y_max, z_min, z_max;
-  /// Points of a block across a depth edge (0 otherwise). Such a block is described by its two
-  /// parts instead, its pixels split at their middle depth (one surface each).
-  std::vector<float> edge_weight;
-  struct Part {
-    Eigen::Vector3f mean = Eigen::Vector3f::Zero();
-    Eigen::Vector3f min = Eigen::Vector3f::Zero();
-    Eigen::Vector3f max = Eigen::Vector3f::Zero();
-    float weight = 0.0F;
-  };
-  std::vector<std::int32_t> first_part;  ///< per block: its near part in `parts`, −1 if none
-  std::vector<Part> parts;               ///< near and far part of each depth-edge block (2 slots a block)
+  /// Every block's points. A block across a depth edge, whose mean would float between two
+  /// surfaces, is split at its points' middle depth into two parts, one surface each: here its
+  /// near part.
+  Layer front;
+  /// The far part of each block across a depth edge; empty for every other block.
+  Layer back;
 
   [[nodiscard]] std::size_t index(int u, int v) const {
     return static_cast<std::size_t>(v) * static_cast<std::size_t>(stride) + static_cast<std::size_t>(u);
   }
-  [[nodiscard]] Eigen::Vector3f mean(std::size_t b) const { return {x[b], y[b], z[b]}; }
+  [[nodiscard]] bool across_depth_edge(std::size_t b) const { return back.weight[b] > 0.0F; }
 
   /// Set-up (allocates): blocks for an image of the given pixel size.
   void reserve(int image_width, int image_height);
@@ -100,8 +102,9 @@ struct BlockImage {
 /// samples_per_axis blocks per axis: wider windows are strided), oriented toward the camera.
 /// fx: focal length [px]. Returns the number of dense points used (weighted; the normal is
 /// untouched below 3). Exposed for tests; CloudPreprocessor calls it for every voxel.
-/// best_kernel: sum the window 8 blocks at a time with AVX2 when the CPU has it (false: the
-/// portable 4-block loop; the two differ only by float summation order, tests compare them).
+/// best_kernel: sum the window 8 blocks at a time with AVX2 and FMA when the CPU has them
+/// (false: the portable 4-block loop; the two differ only by float rounding, the order of the
+/// sums and the fused multiply-adds, and tests compare them).
 int organised_normal(const BlockImage& blocks, float fx, const Eigen::Vector3f& center,
                      const Eigen::Vector2f& pixel, float radius_m, int samples_per_axis,
                      Eigen::Vector3f& normal, float* curvature = nullptr, bool best_kernel = true);
@@ -189,7 +192,8 @@ class CloudPreprocessor {
   // image whatever the team's size.
   static constexpr int kVoxelBands = 2;
 
-  /// Splits depth-edge block `block` (block coordinates bu, bv) at split_z into its two parts.
+  /// Splits depth-edge block `block` (block coordinates bu, bv) at split_z into its near part
+  /// (blocks_.front) and far part (blocks_.back).
   void split_block(const cv::Mat& depth, int bu, int bv, float split_z, std::size_t block);
   /// organised_resolution() of the depth image with this preprocessor's settings, its rows on
   /// the team's threads (the same value).
