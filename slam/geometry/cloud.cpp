@@ -610,7 +610,7 @@ bool CloudPreprocessor::voxelise(const cv::Mat& depth, float leaf_m, int& voxels
 }
 
 int CloudPreprocessor::find_or_add_voxel(VoxelBand& band, const Eigen::Vector3i& cell) {
-  std::size_t s = hash_cell(cell.x(), cell.y(), cell.z()) & mask_;
+  std::size_t s = hash_cell(cell.x(), cell.y(), cell.z()) & band.mask;
   for (;;) {
     Slot& slot = band.slots[s];
     if (slot.generation != band.generation) {
@@ -619,20 +619,37 @@ int CloudPreprocessor::find_or_add_voxel(VoxelBand& band, const Eigen::Vector3i&
       slot = Slot{cell.x(), cell.y(), cell.z(), voxel, band.generation};
       band.accumulators[static_cast<std::size_t>(voxel)] = Accumulator{};
       band.cells[static_cast<std::size_t>(voxel)] = cell;
+      if (2 * static_cast<std::size_t>(band.voxels) > band.mask + 1 && band.mask < mask_) grow_slots(band);
       return voxel;
     }
     if (slot.x == cell.x() && slot.y == cell.y() && slot.z == cell.z()) return slot.voxel;
-    s = (s + 1) & mask_;
+    s = (s + 1) & band.mask;
   }
 }
 
-bool CloudPreprocessor::voxelise_rows(const cv::Mat& depth, float leaf_m, int row_begin,
-                                      int row_end, VoxelBand& band) {
+void CloudPreprocessor::next_generation(VoxelBand& band) {
   if (++band.generation == 0) {
     for (Slot& slot : band.slots) slot.generation = 0;
     for (Slot& slot : band.recent) slot.generation = 0;
     band.generation = 1;
   }
+}
+
+void CloudPreprocessor::grow_slots(VoxelBand& band) {
+  band.mask = 2 * band.mask + 1;
+  next_generation(band);
+  for (int voxel = 0; voxel < band.voxels; ++voxel) {
+    const Eigen::Vector3i& cell = band.cells[static_cast<std::size_t>(voxel)];
+    std::size_t s = hash_cell(cell.x(), cell.y(), cell.z()) & band.mask;
+    while (band.slots[s].generation == band.generation) s = (s + 1) & band.mask;
+    band.slots[s] = Slot{cell.x(), cell.y(), cell.z(), voxel, band.generation};
+  }
+}
+
+bool CloudPreprocessor::voxelise_rows(const cv::Mat& depth, float leaf_m, int row_begin,
+                                      int row_end, VoxelBand& band) {
+  next_generation(band);
+  band.mask = std::min(kFirstSlots - 1, mask_);
   band.voxels = 0;
   band.dense_points = 0;
   const float inverse_leaf = 1.0F / leaf_m;
@@ -644,7 +661,6 @@ bool CloudPreprocessor::voxelise_rows(const cv::Mat& depth, float leaf_m, int ro
 #endif
   const RowPoints row_points{band.row_x.data(), band.row_y.data(), band.row_z.data(),
                              band.row_cell_x.data(), band.row_cell_y.data(), band.row_cell_z.data()};
-  const std::uint32_t generation = band.generation;
   for (int v = row_begin; v < row_end; ++v) {
     const std::uint16_t* row = depth.ptr<std::uint16_t>(v);
     // The points and voxel coordinates of the row first (vectorised where the CPU allows),
@@ -681,12 +697,13 @@ bool CloudPreprocessor::voxelise_rows(const cv::Mat& depth, float leaf_m, int ro
       if (run_voxel < 0 || x != last_x || y != last_y || zc != last_z) {
         if (run_voxel >= 0) band.accumulators[static_cast<std::size_t>(run_voxel)] = run;
         Slot& recent = band.recent[hash_cell(x, y, zc) & (kRecentSlots - 1)];
-        if (recent.generation == generation && recent.x == x && recent.y == y && recent.z == zc) {
+        if (recent.generation == band.generation && recent.x == x && recent.y == y && recent.z == zc) {
           run_voxel = recent.voxel;
         } else {
           run_voxel = find_or_add_voxel(band, Eigen::Vector3i(x, y, zc));
           if (run_voxel < 0) return false;
-          recent = Slot{x, y, zc, run_voxel, generation};
+          // After find_or_add_voxel: a table that grew started a new generation.
+          recent = Slot{x, y, zc, run_voxel, band.generation};
         }
         last_x = x;
         last_y = y;

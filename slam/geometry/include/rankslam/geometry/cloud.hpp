@@ -172,12 +172,19 @@ class CloudPreprocessor {
   // Direct-mapped cache of recently used voxels in front of the hash table: the voxels of the
   // last few rows fit in it (L1-resident), the table does not.
   static constexpr std::size_t kRecentSlots = 512;
-  // The voxel grid of one band of image rows: its own hash table, voxels numbered in the order
-  // they first appear in the band, their sums and cells, and one row's points and voxel
-  // coordinates (z = 0: no point), filled a row at a time (8 pixels at a time with AVX2) before
-  // the hashing pass.
+  // The hash table's slots in use at the start of a band: a frame's few thousand voxels in
+  // slots that stay in the core's cache. The table is sized for the capacity (twice
+  // max_points_ slots), which spread a frame's voxels over more memory than the cache holds, so
+  // that nearly every new voxel's slot was a cache miss. A band whose voxels fill half of the
+  // slots in use doubles them.
+  static constexpr std::size_t kFirstSlots = 4096;
+  // The voxel grid of one band of image rows: its own hash table (its first mask + 1 slots in
+  // use), voxels numbered in the order they first appear in the band, their sums and cells, and
+  // one row's points and voxel coordinates (z = 0: no point), filled a row at a time (8 pixels
+  // at a time with AVX2) before the hashing pass.
   struct VoxelBand {
     std::uint32_t generation = 0;
+    std::size_t mask = 0;
     std::vector<Slot> slots;
     std::vector<Slot> recent;
     std::vector<Accumulator> accumulators;
@@ -205,11 +212,15 @@ class CloudPreprocessor {
   bool voxelise_rows(const cv::Mat& depth, float leaf_m, int row_begin, int row_end, VoxelBand& band);
   /// Voxel of `cell` in `band`, added (with empty sums) when new; −1 when the band is full.
   int find_or_add_voxel(VoxelBand& band, const Eigen::Vector3i& cell);
+  /// Starts a new generation of `band`'s table and its recent cache (every slot free).
+  static void next_generation(VoxelBand& band);
+  /// Doubles the slots `band` uses and enters its voxels again.
+  void grow_slots(VoxelBand& band);
 
   slam::DepthCameraModel camera_;
   GeometryConfig config_;
   int max_points_ = 0;
-  std::size_t mask_ = 0;
+  std::size_t mask_ = 0;  // of the whole table
   std::array<VoxelBand, kVoxelBands> bands_;
   // Per voxel, before the voxels without a normal are dropped.
   std::vector<Eigen::Vector3f> voxel_normals_;
