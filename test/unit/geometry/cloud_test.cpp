@@ -84,35 +84,45 @@ TEST_F(CloudTest, ResolutionMatchesTheExactMeanNearestNeighbourDistance) {
   EXPECT_EQ(cloud.resolution_m, static_cast<float>(organised));
 }
 
+// At the default leaf, and at a small one that makes each band's hash table double the slots
+// it uses more than once (over 10 000 voxels).
 TEST_F(CloudTest, VoxelCentroidsMatchABruteForceVoxelGrid) {
-  ASSERT_EQ(preprocessor_.process(depth_, cloud_), GeometryStatus::kOk);
-  const float leaf = cloud_.voxel_leaf_m;
-  EXPECT_NEAR(leaf, config_.voxel_leaf_factor * static_cast<double>(cloud_.resolution_m), 1e-6);
-  // Reference: every pass-through pixel into its voxel, centroids in double.
-  const float inverse = 1.0F / leaf;
-  std::map<std::tuple<long, long, long>, std::pair<Eigen::Vector3d, int>> voxels;
-  const DenseCloud dense = pass_through_cloud(depth_, camera_, 4.0F);
-  for (const Eigen::Vector3f& p : dense.pts) {
-    const auto key = std::make_tuple(static_cast<long>(std::floor(static_cast<double>(p.x() * inverse))),
-                                     static_cast<long>(std::floor(static_cast<double>(p.y() * inverse))),
-                                     static_cast<long>(std::floor(static_cast<double>(p.z() * inverse))));
-    auto& entry = voxels.try_emplace(key, Eigen::Vector3d::Zero(), 0).first->second;
-    entry.first += p.cast<double>();
-    ++entry.second;
-  }
-  EXPECT_EQ(cloud_.dense_points, static_cast<int>(dense.pts.size()));
-  EXPECT_EQ(cloud_.size + cloud_.dropped_normals, static_cast<int>(voxels.size()));
-  EXPECT_GT(cloud_.size, 1000);
-  for (int i = 0; i < cloud_.size; ++i) {
-    const Eigen::Vector3f& c = cloud_.points[static_cast<std::size_t>(i)];
-    const auto key = std::make_tuple(static_cast<long>(std::floor(static_cast<double>(c.x() * inverse))),
-                                     static_cast<long>(std::floor(static_cast<double>(c.y() * inverse))),
-                                     static_cast<long>(std::floor(static_cast<double>(c.z() * inverse))));
-    const auto it = voxels.find(key);
-    ASSERT_NE(it, voxels.end()) << "centroid " << i << " in no reference voxel";
-    const Eigen::Vector3d reference = it->second.first / it->second.second;
-    EXPECT_LT((reference - c.cast<double>()).norm(), 1e-5) << "voxel " << i;
-    EXPECT_EQ(cloud_.dense_counts[static_cast<std::size_t>(i)], it->second.second);
+  for (const double leaf_factor : {config_.voxel_leaf_factor, 6.0}) {
+    SCOPED_TRACE(::testing::Message() << "leaf factor " << leaf_factor);
+    GeometryConfig config = config_;
+    config.voxel_leaf_factor = leaf_factor;
+    CloudPreprocessor preprocessor;
+    ASSERT_EQ(preprocessor.configure(camera_, config, 16384), "");
+    SampledCloud cloud = preprocessor.make_cloud();
+    ASSERT_EQ(preprocessor.process(depth_, cloud), GeometryStatus::kOk);
+    const float leaf = cloud.voxel_leaf_m;
+    EXPECT_NEAR(leaf, leaf_factor * static_cast<double>(cloud.resolution_m), 1e-6);
+    // Reference: every pass-through pixel into its voxel, centroids in double.
+    const float inverse = 1.0F / leaf;
+    std::map<std::tuple<long, long, long>, std::pair<Eigen::Vector3d, int>> voxels;
+    const DenseCloud dense = pass_through_cloud(depth_, camera_, 4.0F);
+    for (const Eigen::Vector3f& p : dense.pts) {
+      const auto key = std::make_tuple(static_cast<long>(std::floor(static_cast<double>(p.x() * inverse))),
+                                       static_cast<long>(std::floor(static_cast<double>(p.y() * inverse))),
+                                       static_cast<long>(std::floor(static_cast<double>(p.z() * inverse))));
+      auto& entry = voxels.try_emplace(key, Eigen::Vector3d::Zero(), 0).first->second;
+      entry.first += p.cast<double>();
+      ++entry.second;
+    }
+    EXPECT_EQ(cloud.dense_points, static_cast<int>(dense.pts.size()));
+    EXPECT_EQ(cloud.size + cloud.dropped_normals, static_cast<int>(voxels.size()));
+    EXPECT_GT(cloud.size, leaf_factor < 10.0 ? 10000 : 1000);
+    for (int i = 0; i < cloud.size; ++i) {
+      const Eigen::Vector3f& c = cloud.points[static_cast<std::size_t>(i)];
+      const auto key = std::make_tuple(static_cast<long>(std::floor(static_cast<double>(c.x() * inverse))),
+                                       static_cast<long>(std::floor(static_cast<double>(c.y() * inverse))),
+                                       static_cast<long>(std::floor(static_cast<double>(c.z() * inverse))));
+      const auto it = voxels.find(key);
+      ASSERT_NE(it, voxels.end()) << "centroid " << i << " in no reference voxel";
+      const Eigen::Vector3d reference = it->second.first / it->second.second;
+      EXPECT_LT((reference - c.cast<double>()).norm(), 1e-5) << "voxel " << i;
+      EXPECT_EQ(cloud.dense_counts[static_cast<std::size_t>(i)], it->second.second);
+    }
   }
 }
 
