@@ -79,7 +79,7 @@ void ThreadTeam::run(int count, int grain, Trampoline trampoline, void* context)
     count_ = count;
     grain_ = grain;
     next_.store(0, std::memory_order_relaxed);
-    open_ = true;
+    open_.store(true, std::memory_order_seq_cst);
     generation_.store(generation_.load(std::memory_order_relaxed) + 1, std::memory_order_release);
   }
   wake_.notify_all();
@@ -88,9 +88,35 @@ void ThreadTeam::run(int count, int grain, Trampoline trampoline, void* context)
   // do: the loop is closed to it, so the caller never waits for a worker still waking up (or
   // not yet scheduled, when other threads hold the cores). Only the workers inside the loop are
   // waited for, since its memory (the body and what it writes) must outlive them.
-  std::unique_lock<std::mutex> lock(mutex_);
-  open_ = false;
-  finished_.wait(lock, [this] { return active_workers_ == 0; });
+  open_.store(false, std::memory_order_seq_cst);
+  if (active_workers_.load(std::memory_order_seq_cst) != 0) wait_for_workers();
+}
+
+void ThreadTeam::wait_for_workers() {
+  // A worker's last chunk ends within microseconds: polling for it keeps the caller on its core,
+  // where sleeping on finished_ cost a wake-up (tens of microseconds) at the end of every loop
+  // a worker finished last. Past kPollBeforeSleep (a worker that lost its core) it sleeps.
+  constexpr unsigned kPollsPerCheck = 64;
+  const auto deadline = std::chrono::steady_clock::now() + kPollBeforeSleep;
+  for (unsigned polls = 1; active_workers_.load(std::memory_order_acquire) != 0; ++polls) {
+    if (polls % kPollsPerCheck == 0) {
+      if (std::chrono::steady_clock::now() > deadline) {
+        std::unique_lock<std::mutex> lock(mutex_);
+        finished_.wait(lock, [this] { return active_workers_.load(std::memory_order_acquire) == 0; });
+        return;
+      }
+      sched_yield();
+    }
+    cpu_relax();
+  }
+}
+
+void ThreadTeam::leave_loop() {
+  if (active_workers_.fetch_sub(1, std::memory_order_acq_rel) == 1) {
+    // Under the mutex, so that a caller between its check and its sleep cannot miss it.
+    const std::lock_guard<std::mutex> lock(mutex_);
+    finished_.notify_one();
+  }
 }
 
 bool ThreadTeam::poll_for_loop(std::uint64_t seen) const {
@@ -114,32 +140,25 @@ bool ThreadTeam::poll_for_loop(std::uint64_t seen) const {
 void ThreadTeam::worker_main(int thread) {
   std::uint64_t seen = 0;
   for (;;) {
-    Trampoline trampoline = nullptr;
-    void* context = nullptr;
     // A frame's loops follow each other within microseconds: a worker that polls for the next
     // one is in it at once, where one woken from sleep was often queued behind the caller on the
     // caller's own core. Between frames it sleeps.
-    (void)poll_for_loop(seen);
-    {
+    if (!poll_for_loop(seen)) {
       std::unique_lock<std::mutex> lock(mutex_);
       wake_.wait(lock, [&] {
         return stopping_.load(std::memory_order_relaxed) ||
                generation_.load(std::memory_order_relaxed) != seen;
       });
-      if (stopping_.load(std::memory_order_relaxed)) return;
-      seen = generation_.load(std::memory_order_relaxed);
-      if (!open_) continue;  // arrived after the caller had handed out every chunk
-      ++active_workers_;
-      trampoline = trampoline_;
-      context = context_;
     }
-    work(thread, trampoline, context);
-    bool last = false;
-    {
-      const std::lock_guard<std::mutex> lock(mutex_);
-      last = --active_workers_ == 0;
+    if (stopping_.load(std::memory_order_acquire)) return;
+    seen = generation_.load(std::memory_order_acquire);
+    active_workers_.fetch_add(1, std::memory_order_seq_cst);
+    if (!open_.load(std::memory_order_seq_cst)) {  // arrived after the caller had handed out every chunk
+      leave_loop();
+      continue;
     }
-    if (last) finished_.notify_one();
+    work(thread, trampoline_, context_);
+    leave_loop();
   }
 }
 

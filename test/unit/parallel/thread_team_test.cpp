@@ -88,6 +88,39 @@ TEST(ThreadTeam, AWorkerTakesTheChunksTheCallerCannot) {
   }
 }
 
+// The caller returns only once the workers inside the loop are done, and sees what they wrote:
+// whether a worker's chunk ends while the caller polls for it (microseconds) or after the
+// caller has gone to sleep (milliseconds).
+TEST(ThreadTeam, TheCallerWaitsForAWorkerThatFinishesLast) {
+  ThreadTeam team;
+  ASSERT_EQ(team.start(2), "");
+  for (const auto work : {std::chrono::microseconds(20), std::chrono::microseconds(3000)}) {
+    int finished_by_worker = 0;
+    for (int loop = 0; loop < 20; ++loop) {
+      int written = -1;  // plain: the loop's end must order the worker's write before the read
+      std::atomic<bool> worker_took_part{false};
+      team.for_chunks(2, 1, [&](int, int, int thread) {
+        if (thread == 0) {
+          // The caller's chunk lasts until a worker holds the other one (or a bounded while).
+          const auto deadline = std::chrono::steady_clock::now() + std::chrono::seconds(5);
+          while (!worker_took_part.load() && std::chrono::steady_clock::now() < deadline) {
+          }
+          return;
+        }
+        worker_took_part = true;
+        const auto until = std::chrono::steady_clock::now() + work;
+        while (std::chrono::steady_clock::now() < until) {
+        }
+        written = loop;
+      });
+      if (!worker_took_part.load()) continue;
+      ASSERT_EQ(written, loop) << "the caller returned before the worker's chunk ended";
+      ++finished_by_worker;
+    }
+    EXPECT_GT(finished_by_worker, 0) << "no worker took part in " << work.count() << " µs loops";
+  }
+}
+
 TEST(ThreadTeam, ForEachGivesEveryPartOnce) {
   ThreadTeam team;
   ASSERT_EQ(team.start(2), "");

@@ -71,20 +71,28 @@ class ThreadTeam {
   void worker_main(int thread);
   /// Polls for a loop after `seen` (or stop) for up to kPollBeforeSleep; true if one came.
   [[nodiscard]] bool poll_for_loop(std::uint64_t seen) const;
+  /// The caller's wait for the workers inside the closed loop: polls, then sleeps.
+  void wait_for_workers();
+  /// A worker leaves the loop it joined; the last one out wakes a sleeping caller.
+  void leave_loop();
   void stop();
 
   std::vector<std::thread> workers_;
   std::mutex mutex_;
   std::condition_variable wake_;
   std::condition_variable finished_;
-  // The loop being run; written under mutex_ before generation_ changes.
+  // The loop being run, written by the caller before it opens the loop; a worker reads it only
+  // once it has joined (counted itself in active_workers_ and seen the loop open), and the
+  // caller writes the next one only once every worker has left.
   Trampoline trampoline_ = nullptr;
   void* context_ = nullptr;
   int count_ = 0;
   int grain_ = 1;
   std::atomic<std::uint64_t> generation_{0};  // written under mutex_, polled without it
-  bool open_ = false;       // workers may still join the current loop
-  int active_workers_ = 0;  // workers inside the current loop
+  // Workers may still join the current loop. A worker counts itself in, then checks this; the
+  // caller clears it, then waits for the count: one of the two always sees the other.
+  std::atomic<bool> open_{false};
+  std::atomic<int> active_workers_{0};  // workers inside the current loop
   std::atomic<bool> stopping_{false};
   std::atomic<int> next_{0};
 };
