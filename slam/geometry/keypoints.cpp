@@ -1,6 +1,8 @@
 #include "rankslam/geometry/keypoints.hpp"
 
 #include <algorithm>
+#include <bit>
+#include <cstdint>
 #include <cmath>
 #include <utility>
 
@@ -127,27 +129,6 @@ constexpr std::array<CellOffset, 27> nearest_cells_first() {
 }
 constexpr std::array<CellOffset, 27> kNearestCellsFirst = nearest_cells_first();
 
-// keep_nearest on (squared distance, rank) pairs: the k least in that order, whatever the order
-// they arrive in. With the ranks of the 27 cells' scan, the same neighbours, in the same order,
-// as keep_nearest over that scan (which keeps the first-scanned of equal distances).
-inline void keep_nearest_ranked(float d2, int rank, int index, int k, int& found, int* indices,
-                                float* distances, int* ranks) {
-  const auto before = [](float d2_a, int rank_a, float d2_b, int rank_b) {
-    return d2_a < d2_b || (d2_a == d2_b && rank_a < rank_b);
-  };
-  if (found == k && !before(d2, rank, distances[k - 1], ranks[k - 1])) return;
-  int pos = found < k ? found++ : k - 1;
-  while (pos > 0 && before(d2, rank, distances[pos - 1], ranks[pos - 1])) {
-    distances[pos] = distances[pos - 1];
-    indices[pos] = indices[pos - 1];
-    ranks[pos] = ranks[pos - 1];
-    --pos;
-  }
-  distances[pos] = d2;
-  indices[pos] = index;
-  ranks[pos] = rank;
-}
-
 }  // namespace
 
 void KeypointDetector::compute_saliency(const SampledCloud& cloud, const std::uint8_t* wanted) {
@@ -173,7 +154,7 @@ void KeypointDetector::compute_saliency(const SampledCloud& cloud, const std::ui
     float* cd2 = candidate_d2_.data() + scratch;
     std::array<int, PointGrid::kMaxNeighbours> neighbours{};
     std::array<float, PointGrid::kMaxNeighbours> distances{};
-    std::array<int, PointGrid::kMaxNeighbours> ranks{};
+    std::array<std::uint64_t, PointGrid::kMaxNeighbours> keys{};
     std::array<int, 27> cell_of_scan{};
     std::array<int, 27> first_rank_of_scan{};
     for (int cell_index = first_cell; cell_index < end_cell; ++cell_index) {
@@ -226,12 +207,29 @@ void KeypointDetector::compute_saliency(const SampledCloud& cloud, const std::ui
           const Values x(cx, candidates), y(cy, candidates), z(cz, candidates);
           Values(cd2, candidates) = (x - p.x()).square() + ((y - p.y()).square() + (z - p.z()).square());
         }
+        // The k least (squared distance, rank) pairs: with the ranks of the 27 cells' scan, the
+        // same neighbours, in the same order, as keeping the k nearest over that scan (which keeps
+        // the first-scanned of equal distances). Each pair is one integer: a non-negative float
+        // orders as its bits, so (bits << 32 | rank) orders as the pair, in one compare.
         int found = 0;
         for (int c = 0; c < candidates; ++c) {
+          const std::uint64_t key = (static_cast<std::uint64_t>(std::bit_cast<std::uint32_t>(cd2[c])) << 32) |
+                                    static_cast<std::uint32_t>(candidate_rank[c]);
+          if (found == k && key >= keys[static_cast<std::size_t>(k - 1)]) continue;
           const int j = candidate_index[c];
           if (j == i) continue;
-          keep_nearest_ranked(cd2[c], candidate_rank[c], j, k, found, neighbours.data(), distances.data(),
-                              ranks.data());
+          int pos = found < k ? found++ : k - 1;
+          while (pos > 0 && key < keys[static_cast<std::size_t>(pos - 1)]) {
+            keys[static_cast<std::size_t>(pos)] = keys[static_cast<std::size_t>(pos - 1)];
+            neighbours[static_cast<std::size_t>(pos)] = neighbours[static_cast<std::size_t>(pos - 1)];
+            --pos;
+          }
+          keys[static_cast<std::size_t>(pos)] = key;
+          neighbours[static_cast<std::size_t>(pos)] = j;
+        }
+        for (int q = 0; q < found; ++q) {
+          distances[static_cast<std::size_t>(q)] =
+              std::bit_cast<float>(static_cast<std::uint32_t>(keys[static_cast<std::size_t>(q)] >> 32));
         }
         const float margin = std::min((p - lo).minCoeff(), (hi - p).minCoeff());
         if (found < k || distances[static_cast<std::size_t>(k - 1)] > margin * margin) {
