@@ -680,45 +680,59 @@ bool CloudPreprocessor::voxelise_rows(const cv::Mat& depth, float leaf_m, int ro
 #endif
     block_sums_.add_row(band.row_x.data(), band.row_y.data(), band.row_z.data(), depth.cols,
                         v / BlockImage::kBlock);
-    // The current voxel's sums stay in registers over its run of pixels and are written back
-    // when the run ends: the same additions in the same order as adding each pixel in memory.
-    std::int32_t last_x = 0, last_y = 0, last_z = 0;
-    int run_voxel = -1;
-    Accumulator run;
+    // Runs of valid pixels in one voxel, each summed on its own and then added to the voxel:
+    // a run's additions depend on each other, but not on the next run's, so the core overlaps
+    // them (summed pixel by pixel into the voxel, every addition waited for the last one). The
+    // column sum of a run is exact: whole numbers below 2^24.
+    const float* const xs = band.row_x.data();
+    const float* const ys = band.row_y.data();
+    const float* const zs = band.row_z.data();
+    const std::int32_t* const cell_xs = band.row_cell_x.data();
+    const std::int32_t* const cell_ys = band.row_cell_y.data();
+    const std::int32_t* const cell_zs = band.row_cell_z.data();
     const auto row_v = static_cast<float>(v);
+    const int columns = depth.cols;
     int points_in_row = 0;
-    for (int u = 0; u < depth.cols; ++u) {
-      const auto i = static_cast<std::size_t>(u);
-      const float z = band.row_z[i];
-      if (!(z > 0.0F)) continue;
-      const std::int32_t x = band.row_cell_x[i];
-      const std::int32_t y = band.row_cell_y[i];
-      const std::int32_t zc = band.row_cell_z[i];
-      if (run_voxel < 0 || x != last_x || y != last_y || zc != last_z) {
-        if (run_voxel >= 0) band.accumulators[static_cast<std::size_t>(run_voxel)] = run;
-        Slot& recent = band.recent[hash_cell(x, y, zc) & (kRecentSlots - 1)];
-        if (recent.generation == band.generation && recent.x == x && recent.y == y && recent.z == zc) {
-          run_voxel = recent.voxel;
-        } else {
-          run_voxel = find_or_add_voxel(band, Eigen::Vector3i(x, y, zc));
-          if (run_voxel < 0) return false;
-          // After find_or_add_voxel: a table that grew started a new generation.
-          recent = Slot{x, y, zc, run_voxel, band.generation};
-        }
-        last_x = x;
-        last_y = y;
-        last_z = zc;
-        run = band.accumulators[static_cast<std::size_t>(run_voxel)];
+    int u = 0;
+    while (u < columns) {
+      if (!(zs[u] > 0.0F)) {
+        ++u;
+        continue;
       }
-      run.x += band.row_x[i];
-      run.y += band.row_y[i];
-      run.z += z;
-      run.u += static_cast<float>(u);
-      run.v += row_v;
-      ++run.count;
-      ++points_in_row;
+      const std::int32_t x = cell_xs[u];
+      const std::int32_t y = cell_ys[u];
+      const std::int32_t zc = cell_zs[u];
+      const int first = u;
+      for (++u; u < columns && zs[u] > 0.0F && cell_xs[u] == x && cell_ys[u] == y && cell_zs[u] == zc; ++u) {
+      }
+      float sum_x = 0.0F;
+      float sum_y = 0.0F;
+      float sum_z = 0.0F;
+      for (int k = first; k < u; ++k) {
+        sum_x += xs[k];
+        sum_y += ys[k];
+        sum_z += zs[k];
+      }
+      int voxel = -1;
+      Slot& recent = band.recent[hash_cell(x, y, zc) & (kRecentSlots - 1)];
+      if (recent.generation == band.generation && recent.x == x && recent.y == y && recent.z == zc) {
+        voxel = recent.voxel;
+      } else {
+        voxel = find_or_add_voxel(band, Eigen::Vector3i(x, y, zc));
+        if (voxel < 0) return false;
+        // After find_or_add_voxel: a table that grew started a new generation.
+        recent = Slot{x, y, zc, voxel, band.generation};
+      }
+      const int length = u - first;
+      Accumulator& sums = band.accumulators[static_cast<std::size_t>(voxel)];
+      sums.x += sum_x;
+      sums.y += sum_y;
+      sums.z += sum_z;
+      sums.u += static_cast<float>((first + u - 1) * length / 2);
+      sums.v += row_v * static_cast<float>(length);
+      sums.count += length;
+      points_in_row += length;
     }
-    if (run_voxel >= 0) band.accumulators[static_cast<std::size_t>(run_voxel)] = run;
     band.dense_points += points_in_row;
   }
   return true;
