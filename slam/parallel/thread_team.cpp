@@ -23,6 +23,23 @@ inline void cpu_relax() {
 #endif
 }
 
+// Polls `done` for up to ThreadTeam::kPollBeforeSleep: true as soon as it holds, false at the
+// deadline. Reading the clock costs as much as a few dozen polls; yielding lets a thread waiting
+// for this core (the companion, the robot's other work) run instead of the poll.
+template <class Done>
+bool poll_until(const Done& done) {
+  constexpr unsigned kPollsPerCheck = 64;
+  const auto deadline = std::chrono::steady_clock::now() + ThreadTeam::kPollBeforeSleep;
+  for (unsigned polls = 1;; ++polls) {
+    if (done()) return true;
+    if (polls % kPollsPerCheck == 0) {
+      if (std::chrono::steady_clock::now() > deadline) return false;
+      sched_yield();
+    }
+    cpu_relax();
+  }
+}
+
 }  // namespace
 
 ThreadTeam::~ThreadTeam() { stop(); }
@@ -96,19 +113,10 @@ void ThreadTeam::wait_for_workers() {
   // A worker's last chunk ends within microseconds: polling for it keeps the caller on its core,
   // where sleeping on finished_ cost a wake-up (tens of microseconds) at the end of every loop
   // a worker finished last. Past kPollBeforeSleep (a worker that lost its core) it sleeps.
-  constexpr unsigned kPollsPerCheck = 64;
-  const auto deadline = std::chrono::steady_clock::now() + kPollBeforeSleep;
-  for (unsigned polls = 1; active_workers_.load(std::memory_order_acquire) != 0; ++polls) {
-    if (polls % kPollsPerCheck == 0) {
-      if (std::chrono::steady_clock::now() > deadline) {
-        std::unique_lock<std::mutex> lock(mutex_);
-        finished_.wait(lock, [this] { return active_workers_.load(std::memory_order_acquire) == 0; });
-        return;
-      }
-      sched_yield();
-    }
-    cpu_relax();
-  }
+  const auto none_inside = [this] { return active_workers_.load(std::memory_order_acquire) == 0; };
+  if (poll_until(none_inside)) return;
+  std::unique_lock<std::mutex> lock(mutex_);
+  finished_.wait(lock, none_inside);
 }
 
 void ThreadTeam::leave_loop() {
@@ -120,21 +128,9 @@ void ThreadTeam::leave_loop() {
 }
 
 bool ThreadTeam::poll_for_loop(std::uint64_t seen) const {
-  // Reading the clock costs as much as a few dozen polls; yielding lets a thread waiting for
-  // this core (the companion, the robot's other work) run instead of the poll.
-  constexpr unsigned kPollsPerCheck = 64;
-  const auto deadline = std::chrono::steady_clock::now() + kPollBeforeSleep;
-  for (unsigned polls = 1;; ++polls) {
-    if (generation_.load(std::memory_order_acquire) != seen ||
-        stopping_.load(std::memory_order_acquire)) {
-      return true;
-    }
-    if (polls % kPollsPerCheck == 0) {
-      if (std::chrono::steady_clock::now() > deadline) return false;
-      sched_yield();
-    }
-    cpu_relax();
-  }
+  return poll_until([&] {
+    return generation_.load(std::memory_order_acquire) != seen || stopping_.load(std::memory_order_acquire);
+  });
 }
 
 void ThreadTeam::worker_main(int thread) {
