@@ -3,6 +3,7 @@
 #include "rankslam/parallel/cpu_features.hpp"
 
 #include <algorithm>
+#include <array>
 #include <cmath>
 #include <cstdlib>
 
@@ -22,7 +23,7 @@ void PointGrid::reserve(int max_points) {
   generation_ = 0;
   cell_list_.assign(static_cast<std::size_t>(capacity_), Cell{});
   point_cell_.assign(static_cast<std::size_t>(capacity_), -1);
-  sorted_.assign(static_cast<std::size_t>(capacity_), 0);
+  sorted_.assign(static_cast<std::size_t>(capacity_) + 8, 0);
   for (std::vector<float>* v : {&sorted_x_, &sorted_y_, &sorted_z_}) {
     v->assign(static_cast<std::size_t>(capacity_) + 8, 0.0F);
   }
@@ -146,9 +147,118 @@ __attribute__((target("avx2"))) int within_radius_avx2(const float* xs, const fl
   done = k;
   return found;
 }
+
+// For gather_in_radius' AVX2 kernel: for each 8-bit mask the lanes of its set bits in order, a
+// nibble each, so that one permute packs the chosen lanes to the front.
+constexpr std::array<std::uint32_t, 256> kPackedLanes = [] {
+  std::array<std::uint32_t, 256> table{};
+  for (std::uint32_t mask = 0; mask < 256; ++mask) {
+    std::uint32_t lanes = 0;
+    int packed = 0;
+    for (std::uint32_t lane = 0; lane < 8; ++lane) {
+      if (((mask >> lane) & 1U) != 0) lanes |= lane << (4 * packed++);
+    }
+    table[mask] = lanes;
+  }
+  return table;
+}();
+
+// One cell's run of gather_in_radius, 8 points at a time (AVX2, chosen at run time): the squared
+// distances of within_radius_avx2, the points within r2 packed to the front of each block of 8
+// and stored whole. Reads up to 7 values past the run (the sorted arrays are padded) and ignores
+// them.
+__attribute__((target("avx2,popcnt"))) void gather_run_avx2(const float* xs, const float* ys,
+                                                           const float* zs, const int* indices,
+                                                           const Eigen::Vector3f& q, float r2,
+                                                           int count,
+                                                           const PointGrid::RadiusGather& out,
+                                                           int& written, int& support) {
+  const __m256 qx = _mm256_set1_ps(q.x());
+  const __m256 qy = _mm256_set1_ps(q.y());
+  const __m256 qz = _mm256_set1_ps(q.z());
+  const __m256 limit = _mm256_set1_ps(r2);
+  const __m256i lane_index = _mm256_setr_epi32(0, 1, 2, 3, 4, 5, 6, 7);
+  const __m256i nibble_shift = _mm256_setr_epi32(0, 4, 8, 12, 16, 20, 24, 28);
+  for (int k = 0; k < count; k += 8) {
+    const __m256 dx = _mm256_sub_ps(_mm256_loadu_ps(xs + k), qx);
+    const __m256 dy = _mm256_sub_ps(_mm256_loadu_ps(ys + k), qy);
+    const __m256 dz = _mm256_sub_ps(_mm256_loadu_ps(zs + k), qz);
+    const __m256 sum = _mm256_add_ps(_mm256_mul_ps(dx, dx),
+                                     _mm256_add_ps(_mm256_mul_ps(dy, dy), _mm256_mul_ps(dz, dz)));
+    const __m256 in_run = _mm256_castsi256_ps(_mm256_cmpgt_epi32(_mm256_set1_epi32(count - k), lane_index));
+    const __m256 inside = _mm256_and_ps(in_run, _mm256_cmp_ps(sum, limit, _CMP_LE_OQ));
+    const auto inside_mask = static_cast<unsigned>(_mm256_movemask_ps(inside));
+    if (inside_mask == 0) continue;
+    support += __builtin_popcount(inside_mask);
+    const auto keep = static_cast<unsigned>(
+        _mm256_movemask_ps(_mm256_and_ps(inside, _mm256_cmp_ps(sum, _mm256_setzero_ps(), _CMP_NEQ_UQ))));
+    if (keep == 0) continue;
+    const __m256i lanes = _mm256_and_si256(
+        _mm256_srlv_epi32(_mm256_set1_epi32(static_cast<int>(kPackedLanes[keep])), nibble_shift),
+        _mm256_set1_epi32(7));
+    const int at = written;
+    _mm256_storeu_ps(out.dx + at, _mm256_permutevar8x32_ps(dx, lanes));
+    _mm256_storeu_ps(out.dy + at, _mm256_permutevar8x32_ps(dy, lanes));
+    _mm256_storeu_ps(out.dz + at, _mm256_permutevar8x32_ps(dz, lanes));
+    _mm256_storeu_ps(out.d2 + at, _mm256_permutevar8x32_ps(sum, lanes));
+    _mm256_storeu_si256(reinterpret_cast<__m256i*>(out.index + at),
+                        _mm256_permutevar8x32_epi32(
+                            _mm256_loadu_si256(reinterpret_cast<const __m256i*>(indices + k)), lanes));
+    written = std::min(at + __builtin_popcount(keep), out.capacity);
+  }
+}
 #endif
 
 }  // namespace
+
+int PointGrid::gather_in_radius(const Eigen::Vector3f& q, float radius_m, const RadiusGather& out,
+                                int& written) const {
+  written = 0;
+  int support = 0;
+  const float r2 = radius_m * radius_m;
+  const std::int32_t x0 = cell_coordinate(q.x() - radius_m);
+  const std::int32_t x1 = cell_coordinate(q.x() + radius_m);
+  const std::int32_t y0 = cell_coordinate(q.y() - radius_m);
+  const std::int32_t y1 = cell_coordinate(q.y() + radius_m);
+  const std::int32_t z0 = cell_coordinate(q.z() - radius_m);
+  const std::int32_t z1 = cell_coordinate(q.z() + radius_m);
+#ifdef RANKSLAM_GEOMETRY_HAVE_AVX2_GRID
+  const bool avx2 = parallel::cpu_has_avx2();
+#endif
+  for (std::int32_t x = x0; x <= x1; ++x) {
+    for (std::int32_t y = y0; y <= y1; ++y) {
+      for (std::int32_t z = z0; z <= z1; ++z) {
+        const int c = find_cell(x, y, z);
+        if (c < 0) continue;
+        const Cell& cell = cell_list_[static_cast<std::size_t>(c)];
+        const auto b = static_cast<std::size_t>(cell.start);
+#ifdef RANKSLAM_GEOMETRY_HAVE_AVX2_GRID
+        if (avx2) {
+          gather_run_avx2(sorted_x_.data() + b, sorted_y_.data() + b, sorted_z_.data() + b,
+                          sorted_.data() + b, q, r2, cell.count, out, written, support);
+          continue;
+        }
+#endif
+        for (std::size_t j = b; j < b + static_cast<std::size_t>(cell.count); ++j) {
+          const float dx = sorted_x_[j] - q.x();
+          const float dy = sorted_y_[j] - q.y();
+          const float dz = sorted_z_[j] - q.z();
+          const float d2 = dx * dx + (dy * dy + dz * dz);
+          if (!(d2 <= r2)) continue;
+          ++support;
+          if (d2 == 0.0F || written == out.capacity) continue;
+          const auto k = static_cast<std::size_t>(written++);
+          out.dx[k] = dx;
+          out.dy[k] = dy;
+          out.dz[k] = dz;
+          out.d2[k] = d2;
+          out.index[k] = sorted_[j];
+        }
+      }
+    }
+  }
+  return support;
+}
 
 int PointGrid::within_radius(const Eigen::Vector3f& q, float r2, int begin, int count, int* indices,
                              float* squared_distances) const {

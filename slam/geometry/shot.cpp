@@ -41,15 +41,15 @@ struct VoteArrays {
   const float* ny;
   const float* nz;
   const float* distance;
-  float* own;
+  std::int32_t* own;  // bin index into the descriptor
   float* own_weight;
-  float* cosine;
+  std::int32_t* cosine;  // bin index into the descriptor
   float* cosine_weight;
-  float* radial;
+  std::int32_t* radial;  // bin index into the descriptor
   float* radial_weight;
-  float* elevation;
+  std::int32_t* elevation;  // bin index into the descriptor
   float* elevation_weight;
-  float* azimuth;
+  std::int32_t* azimuth;  // bin index into the descriptor
   float* azimuth_weight;
 };
 
@@ -58,7 +58,7 @@ struct VoteFrame {
   float radius_1_4, radius_1_2, radius_3_4;
 };
 
-// The bins (as floats) and weights of every neighbour's five votes, branch-free (PCL's branches
+// The bins and weights of every neighbour's five votes, branch-free (PCL's branches
 // as selects: a neighbour that PCL does not let vote for an adjacent volume votes 0 into its own
 // bin instead). Portable version, one neighbour at a time.
 void vote_bins_portable(const VoteArrays& v, const VoteFrame& f, int end) {
@@ -86,15 +86,15 @@ void vote_bins_portable(const VoteArrays& v, const VoteFrame& f, int end) {
   const float* const ny_data = v.ny;
   const float* const nz_data = v.nz;
   const float* const distance_data = v.distance;
-  float* const own_data = v.own;
+  std::int32_t* const own_data = v.own;
   float* const own_weight_data = v.own_weight;
-  float* const cosine_data = v.cosine;
+  std::int32_t* const cosine_data = v.cosine;
   float* const cosine_weight_data = v.cosine_weight;
-  float* const radial_data = v.radial;
+  std::int32_t* const radial_data = v.radial;
   float* const radial_weight_data = v.radial_weight;
-  float* const elevation_data = v.elevation;
+  std::int32_t* const elevation_data = v.elevation;
   float* const elevation_weight_data = v.elevation_weight;
-  float* const azimuth_data = v.azimuth;
+  std::int32_t* const azimuth_data = v.azimuth;
   float* const azimuth_weight_data = v.azimuth_weight;
   for (int k = 0; k < end; ++k) {
     const float dx = dx_data[k], dy = dy_data[k], dz = dz_data[k];
@@ -125,7 +125,7 @@ void vote_bins_portable(const VoteArrays& v, const VoteFrame& f, int end) {
     float weight = 1.0F - std::abs(bin_distance);
     const float next = step + 1.0F >= kBins ? step + 1.0F - kBins : step + 1.0F;
     const float previous = step + (kBins - 1.0F) >= kBins ? step - 1.0F : step + (kBins - 1.0F);
-    cosine_data[k] = volume * kStrideF + (bin_distance > 0.0F ? next : previous);
+    cosine_data[k] = static_cast<std::int32_t>(volume * kStrideF + (bin_distance > 0.0F ? next : previous));
     cosine_weight_data[k] = std::abs(bin_distance);
 
     // Distance (adjacent radial shells at R/2): the outer shell votes inward below 3R/4, the
@@ -133,7 +133,7 @@ void vote_bins_portable(const VoteArrays& v, const VoteFrame& f, int end) {
     const float radius_distance = (distance - (outer > 0.0F ? radius_3_4 : radius_1_4)) * inverse_radius_1_2;
     weight += 1.0F - std::abs(radius_distance);
     const float radial_vote = (outer > 0.0F ? radius_distance <= 0.0F : radius_distance >= 0.0F) ? 1.0F : 0.0F;
-    radial_data[k] = own + radial_vote * (2.0F * kStrideF - 4.0F * kStrideF * outer);
+    radial_data[k] = static_cast<std::int32_t>(own + radial_vote * (2.0F * kStrideF - 4.0F * kStrideF * outer));
     radial_weight_data[k] = radial_vote * std::abs(radius_distance);
 
     // Inclination (adjacent elevation volumes at 90°): the lower one votes up below 135°, the
@@ -154,7 +154,7 @@ void vote_bins_portable(const VoteArrays& v, const VoteFrame& f, int end) {
     const float inclination_distance = (inclination - (lower > 0.0F ? kRad135f : kRad45f)) * kInverseRad90;
     weight += 1.0F - std::abs(inclination_distance);
     const float elevation_vote = (lower > 0.0F ? inclination_distance <= 0.0F : inclination_distance >= 0.0F) ? 1.0F : 0.0F;
-    elevation_data[k] = own + elevation_vote * (2.0F * kStrideF * lower - kStrideF);
+    elevation_data[k] = static_cast<std::int32_t>(own + elevation_vote * (2.0F * kStrideF * lower - kStrideF));
     elevation_weight_data[k] = elevation_vote * std::abs(inclination_distance);
 
     // Azimuth (adjacent sectors, circular); undefined on the LRF's z axis. Arc tangent as
@@ -175,10 +175,10 @@ void vote_bins_portable(const VoteArrays& v, const VoteFrame& f, int end) {
     weight += defined * (1.0F - std::abs(azimuth_distance));
     float adjacent = volume + (azimuth_distance > 0.0F ? 4.0F : kVolumesF - 4.0F);
     adjacent = adjacent >= kVolumesF ? adjacent - kVolumesF : adjacent;
-    azimuth_data[k] = adjacent * kStrideF + step;
+    azimuth_data[k] = static_cast<std::int32_t>(adjacent * kStrideF + step);
     azimuth_weight_data[k] = defined * std::abs(azimuth_distance);
 
-    own_data[k] = own;
+    own_data[k] = static_cast<std::int32_t>(own);
     own_weight_data[k] = weight;
   }
 
@@ -196,6 +196,10 @@ RANKSLAM_AVX2_INLINE __m256 avx_select(__m256 mask, __m256 a, __m256 b) { return
 RANKSLAM_AVX2_INLINE __m256 avx_dot(__m256 a, __m256 b, __m256 c, const Eigen::Vector3f& axis) {
   return _mm256_add_ps(_mm256_add_ps(_mm256_mul_ps(a, _mm256_set1_ps(axis.x())), _mm256_mul_ps(b, _mm256_set1_ps(axis.y()))),
                        _mm256_mul_ps(c, _mm256_set1_ps(axis.z())));
+}
+/// Bins held as exact small integers in floats, stored as integers.
+RANKSLAM_AVX2_INLINE void avx_store_bins(std::int32_t* to, __m256 bins) {
+  _mm256_storeu_si256(reinterpret_cast<__m256i*>(to), _mm256_cvttps_epi32(bins));
 }
 #undef RANKSLAM_AVX2_INLINE
 
@@ -259,7 +263,7 @@ __attribute__((target("avx2"))) void vote_bins_avx2(const VoteArrays& v, const V
     const __m256 previous_raw = _mm256_add_ps(step, _mm256_set1_ps(kBins - 1.0F));
     const __m256 previous =
         _mm256_sub_ps(previous_raw, _mm256_and_ps(_mm256_set1_ps(kBins), _mm256_cmp_ps(previous_raw, _mm256_set1_ps(kBins), _CMP_GE_OQ)));
-    _mm256_storeu_ps(v.cosine + k,
+    avx_store_bins(v.cosine + k,
                      _mm256_add_ps(volume_base, avx_select(_mm256_cmp_ps(bin_distance, zero, _CMP_GT_OQ), next, previous)));
     _mm256_storeu_ps(v.cosine_weight + k, avx_abs(bin_distance));
 
@@ -268,7 +272,7 @@ __attribute__((target("avx2"))) void vote_bins_avx2(const VoteArrays& v, const V
     weight = _mm256_add_ps(weight, _mm256_sub_ps(one, avx_abs(radius_distance)));
     const __m256 radial_vote = avx_select(outer, _mm256_cmp_ps(radius_distance, zero, _CMP_LE_OQ),
                                       _mm256_cmp_ps(radius_distance, zero, _CMP_GE_OQ));
-    _mm256_storeu_ps(v.radial + k,
+    avx_store_bins(v.radial + k,
                      _mm256_add_ps(own, _mm256_and_ps(radial_vote, avx_select(outer, _mm256_set1_ps(-2.0F * kStrideF), _mm256_set1_ps(2.0F * kStrideF)))));
     _mm256_storeu_ps(v.radial_weight + k, _mm256_and_ps(radial_vote, avx_abs(radius_distance)));
 
@@ -290,7 +294,7 @@ __attribute__((target("avx2"))) void vote_bins_avx2(const VoteArrays& v, const V
     weight = _mm256_add_ps(weight, _mm256_sub_ps(one, avx_abs(inclination_distance)));
     const __m256 elevation_vote = avx_select(lower, _mm256_cmp_ps(inclination_distance, zero, _CMP_LE_OQ),
                                          _mm256_cmp_ps(inclination_distance, zero, _CMP_GE_OQ));
-    _mm256_storeu_ps(v.elevation + k,
+    avx_store_bins(v.elevation + k,
                      _mm256_add_ps(own, _mm256_and_ps(elevation_vote, avx_select(lower, _mm256_set1_ps(kStrideF), _mm256_set1_ps(-kStrideF)))));
     _mm256_storeu_ps(v.elevation_weight + k, _mm256_and_ps(elevation_vote, avx_abs(inclination_distance)));
 
@@ -312,10 +316,10 @@ __attribute__((target("avx2"))) void vote_bins_avx2(const VoteArrays& v, const V
     __m256 adjacent = _mm256_add_ps(volume, avx_select(_mm256_cmp_ps(azimuth_distance, zero, _CMP_GT_OQ), _mm256_set1_ps(4.0F),
                                          _mm256_set1_ps(kVolumesF - 4.0F)));
     adjacent = _mm256_sub_ps(adjacent, _mm256_and_ps(_mm256_set1_ps(kVolumesF), _mm256_cmp_ps(adjacent, _mm256_set1_ps(kVolumesF), _CMP_GE_OQ)));
-    _mm256_storeu_ps(v.azimuth + k, _mm256_add_ps(_mm256_mul_ps(adjacent, _mm256_set1_ps(kStrideF)), step));
+    avx_store_bins(v.azimuth + k, _mm256_add_ps(_mm256_mul_ps(adjacent, _mm256_set1_ps(kStrideF)), step));
     _mm256_storeu_ps(v.azimuth_weight + k, _mm256_and_ps(defined, avx_abs(azimuth_distance)));
 
-    _mm256_storeu_ps(v.own + k, own);
+    avx_store_bins(v.own + k, own);
     _mm256_storeu_ps(v.own_weight + k, weight);
   }
 }
@@ -333,11 +337,14 @@ bool ShotEstimator::cpu_has_avx2() {
 void ShotEstimator::reserve(int max_support) {
   capacity_ = std::max(0, max_support);
   const auto padded = static_cast<std::size_t>(capacity_ + kLanes);
-  for (std::vector<float>* v : {&dx_, &dy_, &dz_, &d2_, &nx_, &ny_, &nz_, &distance_, &own_,
-                                &own_weight_, &cosine_, &cosine_weight_, &radial_, &radial_weight_,
-                                &elevation_, &elevation_weight_, &azimuth_, &azimuth_weight_}) {
+  for (std::vector<float>* v : {&dx_, &dy_, &dz_, &d2_, &nx_, &ny_, &nz_, &distance_, &own_weight_,
+                                &cosine_weight_, &radial_weight_, &elevation_weight_, &azimuth_weight_}) {
     v->assign(padded, 0.0F);
   }
+  for (std::vector<std::int32_t>* v : {&own_, &cosine_, &radial_, &elevation_, &azimuth_}) {
+    v->assign(padded, 0);
+  }
+  neighbours_.assign(padded, 0);
   sorted_.assign(static_cast<std::size_t>(capacity_), {0.0F, 0});
   count_ = 0;
 }
@@ -421,23 +428,25 @@ ShotResult ShotEstimator::compute(const Eigen::Vector3f& center,
                                   Eigen::Matrix3f* lrf) {
   std::fill(descriptor, descriptor + kShotSize, 0.0F);
   count_ = 0;
-  int support = 0;  // the keypoint itself included, as PCL counts it
-  grid.for_each_in_radius(center, radius_m, [&](int index, float d2) {
-    ++support;
-    // The keypoint (and any point on it) has no direction: neither the LRF nor the histogram
-    // takes it (PCL skips it in both).
-    if (d2 == 0.0F || count_ == capacity_) return;  // capacity: the whole cloud when reserved for it
-    const auto k = static_cast<std::size_t>(count_++);
-    const auto i = static_cast<std::size_t>(index);
-    const Eigen::Vector3f d = points[i] - center;
-    dx_[k] = d.x();
-    dy_[k] = d.y();
-    dz_[k] = d.z();
-    d2_[k] = d2;
-    nx_[k] = normals[i].x();
-    ny_[k] = normals[i].y();
-    nz_[k] = normals[i].z();
-  });
+  if (static_cast<std::size_t>(grid.size()) != points.size() || normals.size() < points.size()) {
+    return ShotResult::kTooFewNeighbours;  // not the grid over these points
+  }
+  // The support's offsets and squared distances come from the grid side by side; the keypoint
+  // itself (and any point on it) has no direction, so neither the LRF nor the histogram takes it
+  // (PCL skips it in both), but it counts toward the support, as PCL counts it.
+  const PointGrid::RadiusGather gather{dx_.data(), dy_.data(), dz_.data(), d2_.data(),
+                                       neighbours_.data(), capacity_};
+  const int support = grid.gather_in_radius(center, radius_m, gather, count_);
+  const int* const neighbours = neighbours_.data();
+  float* const nx = nx_.data();
+  float* const ny = ny_.data();
+  float* const nz = nz_.data();
+  for (int k = 0; k < count_; ++k) {
+    const Eigen::Vector3f& n = normals[static_cast<std::size_t>(neighbours[k])];
+    nx[k] = n.x();
+    ny[k] = n.y();
+    nz[k] = n.z();
+  }
   if (support < std::max(min_neighbours, 1)) return ShotResult::kTooFewNeighbours;
   // Padding up to a whole block: at the keypoint with distance R, so weight R − d = 0 in the LRF.
   const int padded_end = (count_ + kLanes - 1) / kLanes * kLanes;
@@ -484,27 +493,27 @@ ShotResult ShotEstimator::compute(const Eigen::Vector3f& center,
   vote_bins_portable(arrays, vote_frame, padded_end);
 #endif
 
-  // The scattered votes, one neighbour at a time (bins as exact small integers in floats). The
-  // arrays are read through local pointers: the compiler cannot tell that the descriptor's
-  // stores leave the vectors' own pointers alone, and would reload them at every vote.
+  // The scattered votes, one neighbour at a time. The arrays are read through local pointers:
+  // the compiler cannot tell that the descriptor's stores leave the vectors' own pointers alone,
+  // and would reload them at every vote.
   const float* const distance = distance_.data();
-  const float* const cosine_bin = cosine_.data();
+  const std::int32_t* const cosine_bin = cosine_.data();
   const float* const cosine_weight = cosine_weight_.data();
-  const float* const radial_bin = radial_.data();
+  const std::int32_t* const radial_bin = radial_.data();
   const float* const radial_weight = radial_weight_.data();
-  const float* const elevation_bin = elevation_.data();
+  const std::int32_t* const elevation_bin = elevation_.data();
   const float* const elevation_weight = elevation_weight_.data();
-  const float* const azimuth_bin = azimuth_.data();
+  const std::int32_t* const azimuth_bin = azimuth_.data();
   const float* const azimuth_weight = azimuth_weight_.data();
-  const float* const own_bin = own_.data();
+  const std::int32_t* const own_bin = own_.data();
   const float* const own_weight = own_weight_.data();
   for (int k = 0; k < count_; ++k) {
     if (distance[k] < 1e-15F) continue;
-    descriptor[static_cast<int>(cosine_bin[k])] += cosine_weight[k];
-    descriptor[static_cast<int>(radial_bin[k])] += radial_weight[k];
-    descriptor[static_cast<int>(elevation_bin[k])] += elevation_weight[k];
-    descriptor[static_cast<int>(azimuth_bin[k])] += azimuth_weight[k];
-    descriptor[static_cast<int>(own_bin[k])] += own_weight[k];
+    descriptor[cosine_bin[k]] += cosine_weight[k];
+    descriptor[radial_bin[k]] += radial_weight[k];
+    descriptor[elevation_bin[k]] += elevation_weight[k];
+    descriptor[azimuth_bin[k]] += azimuth_weight[k];
+    descriptor[own_bin[k]] += own_weight[k];
   }
 
   double norm = 0.0;

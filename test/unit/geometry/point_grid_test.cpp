@@ -104,6 +104,49 @@ TEST(PointGrid, RadiusQueryMatchesBruteForce) {
   }
 }
 
+TEST(PointGrid, GatherInRadiusWritesTheRadiusQueryOffsetsInItsOrder) {
+  auto points = random_points(2000, 5);
+  // Copies of some query points: at distance 0 from their query, so counted but not written.
+  for (int q = 0; q < 2000; q += 111) points.push_back(points[static_cast<std::size_t>(q)]);
+  const int n = static_cast<int>(points.size());
+  PointGrid grid(n);
+  ASSERT_TRUE(grid.build(points, 0.1F));
+  for (const int capacity : {n, 37, 5, 0}) {
+    // Blocks of 8 are stored whole: room for capacity + 8, the rest must stay untouched.
+    constexpr float kUntouched = -7.0F;
+    const auto room = static_cast<std::size_t>(n + 8);
+    std::vector<float> dx(room, kUntouched), dy(room, kUntouched), dz(room, kUntouched), d2(room, kUntouched);
+    std::vector<int> index(room, -1);
+    const PointGrid::RadiusGather out{dx.data(), dy.data(), dz.data(), d2.data(), index.data(), capacity};
+    for (int q = 0; q < 2000; q += 37) {
+      const Eigen::Vector3f& centre = points[static_cast<std::size_t>(q)];
+      std::vector<int> expected;
+      int expected_support = 0;
+      grid.for_each_in_radius(centre, 0.15F, [&](int i, float distance2) {
+        ++expected_support;
+        if (distance2 != 0.0F) expected.push_back(i);
+      });
+      int written = -1;
+      const int support = grid.gather_in_radius(centre, 0.15F, out, written);
+      EXPECT_EQ(support, expected_support) << "query " << q;
+      ASSERT_EQ(written, std::min(capacity, static_cast<int>(expected.size()))) << "query " << q;
+      for (int k = 0; k < written; ++k) {
+        const auto w = static_cast<std::size_t>(k);
+        ASSERT_EQ(index[w], expected[w]) << "query " << q << " entry " << k;
+        const Eigen::Vector3f offset = points[static_cast<std::size_t>(index[w])] - centre;
+        EXPECT_EQ(dx[w], offset.x());
+        EXPECT_EQ(dy[w], offset.y());
+        EXPECT_EQ(dz[w], offset.z());
+        EXPECT_EQ(d2[w], dx[w] * dx[w] + (dy[w] * dy[w] + dz[w] * dz[w]));
+      }
+      for (std::size_t k = static_cast<std::size_t>(capacity) + 8; k < room; ++k) {
+        ASSERT_EQ(dx[k], kUntouched) << "written past capacity + 8 at " << k;
+        ASSERT_EQ(index[k], -1);
+      }
+    }
+  }
+}
+
 TEST(PointGrid, RejectsOverCapacityAndBadCells) {
   const auto points = random_points(100, 4);
   PointGrid grid(50);

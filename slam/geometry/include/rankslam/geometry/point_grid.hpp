@@ -83,6 +83,23 @@ class PointGrid {
     }
   }
 
+  /// Where gather_in_radius writes: per point its offset p − q, squared distance and index.
+  /// Each array needs room for capacity + 8 values (points go out in blocks of up to 8).
+  struct RadiusGather {
+    float* dx;
+    float* dy;
+    float* dz;
+    float* d2;
+    int* index;
+    int capacity;
+  };
+  /// The points of for_each_in_radius (the same points, order and squared distances), written
+  /// side by side instead of visited one at a time: up to out.capacity of them, points at q
+  /// itself (squared distance 0) left out. Returns how many points lie within the radius, q's own
+  /// included; `written` says how many were written.
+  int gather_in_radius(const Eigen::Vector3f& q, float radius_m, const RadiusGather& out,
+                       int& written) const;
+
   /// Exact k nearest neighbours of q (excluding the point with index `exclude`, −1 for none),
   /// searched in growing shells of cells up to max_ring cells from q's cell; beyond that the
   /// result holds the nearest points found so far. Writes up to k indices and squared distances,

@@ -75,11 +75,12 @@ class ShotEstimator {
   // so, 3.3 ms with the LRF's sign votes as a plain loop (Eigen's boolean-array casts are scalar).
   std::vector<float> dx_, dy_, dz_, d2_;  // neighbour − keypoint, squared distance
   std::vector<float> nx_, ny_, nz_;       // neighbour normal
+  std::vector<int> neighbours_;           // neighbour index into the points
   std::vector<float> distance_;
-  // Per neighbour, filled block-wise before the votes: the bins (as floats) and weights of its
-  // five votes (own volume, adjacent cosine bin, radial shell, elevation and azimuth volume).
-  std::vector<float> own_, own_weight_, cosine_, cosine_weight_, radial_, radial_weight_;
-  std::vector<float> elevation_, elevation_weight_, azimuth_, azimuth_weight_;
+  // Per neighbour, filled block-wise before the votes: the bins and weights of its five votes
+  // (own volume, adjacent cosine bin, radial shell, elevation and azimuth volume).
+  std::vector<std::int32_t> own_, cosine_, radial_, elevation_, azimuth_;
+  std::vector<float> own_weight_, cosine_weight_, radial_weight_, elevation_weight_, azimuth_weight_;
   std::vector<std::pair<float, int>> sorted_;  // tie-break scratch
 };
 
