@@ -144,6 +144,26 @@ GeometricCorrespondences GeometricFrontend::make_correspondences() const {
   return correspondences;
 }
 
+void GeometricFrontend::copy_cloud(GeometricFeatures& out) const {
+  std::copy_n(cloud_.points.begin(), cloud_.size, out.cloud_points.begin());
+  std::copy_n(cloud_.normals.begin(), cloud_.size, out.cloud_normals.begin());
+  std::copy_n(cloud_.pixels.begin(), cloud_.size, out.cloud_pixels.begin());
+  std::copy_n(cloud_.curvature.begin(), cloud_.size, out.cloud_curvature.begin());
+  out.cloud_count = cloud_.size;
+  // A block at least half full and off depth edges: 8+ pixels averaged on one surface.
+  constexpr float kMinBlockPoints = 0.5F * BlockImage::kBlock * BlockImage::kBlock;
+  const BlockImage& blocks = preprocessor_.blocks();
+  int n = 0;
+  for (int v = 0; v < blocks.height; ++v) {
+    for (int u = 0; u < blocks.width; ++u) {
+      const std::size_t b = blocks.index(u, v);
+      if (blocks.front.weight[b] < kMinBlockPoints || blocks.across_depth_edge(b)) continue;
+      out.block_points[static_cast<std::size_t>(n++)] = blocks.front.mean(b);
+    }
+  }
+  out.block_count = n;
+}
+
 GeometryStatus GeometricFrontend::extract(const cv::Mat& depth, GeometricFeatures& out) {
   return extract(depth, config_.keypoint_method, out);
 }
@@ -177,31 +197,12 @@ GeometryStatus GeometricFrontend::extract(const cv::Mat& depth, KeypointMethod m
   out.resolution_m = cloud_.resolution_m;
   out.voxel_leaf_m = cloud_.voxel_leaf_m;
   if (status != GeometryStatus::kOk) return status;
-  std::copy_n(cloud_.points.begin(), cloud_.size, out.cloud_points.begin());
-  std::copy_n(cloud_.normals.begin(), cloud_.size, out.cloud_normals.begin());
-  std::copy_n(cloud_.pixels.begin(), cloud_.size, out.cloud_pixels.begin());
-  std::copy_n(cloud_.curvature.begin(), cloud_.size, out.cloud_curvature.begin());
-  out.cloud_count = cloud_.size;
-  {
-    // A block at least half full and off depth edges: 8+ pixels averaged on one surface.
-    constexpr float kMinBlockPoints = 0.5F * BlockImage::kBlock * BlockImage::kBlock;
-    const BlockImage& blocks = preprocessor_.blocks();
-    int n = 0;
-    for (int v = 0; v < blocks.height; ++v) {
-      for (int u = 0; u < blocks.width; ++u) {
-        const std::size_t b = blocks.index(u, v);
-        if (blocks.front.weight[b] < kMinBlockPoints || blocks.across_depth_edge(b)) continue;
-        out.block_points[static_cast<std::size_t>(n++)] = blocks.front.mean(b);
-      }
-    }
-    out.block_count = n;
-  }
-
   double t1 = now_ms();
   times_.cloud_ms = t1 - t0;
   // The two neighbour grids of the cloud, the keypoints' and SHOT's (cells of the support radius
   // make each query 2–3 cells a side), are serial passes; so is, in effect, IS3D's grouping of
-  // the normals by dominant orientation. The grouping goes beside the two grids.
+  // the normals by dominant orientation. The grouping goes beside the two grids and the copy of
+  // the cloud and block means into the features.
   const auto radius = static_cast<float>(config_.shot_radius_m);
   const auto points = cloud_.point_span();
   const auto normals = cloud_.normal_span();
@@ -217,6 +218,7 @@ GeometryStatus GeometricFrontend::extract(const cv::Mat& depth, KeypointMethod m
     } else {
       support_grid_built = support_grid_.build(points, radius);
       if (group_beside) detector_.prepare(method, cloud_);
+      copy_cloud(out);
     }
   });
   keypoint_count_ = detector_.detect(method, cloud_, keypoints_, status);

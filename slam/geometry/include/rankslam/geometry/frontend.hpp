@@ -191,6 +191,9 @@ class GeometricFrontend {
   [[nodiscard]] const slam::DepthCameraModel& camera() const { return camera_; }
 
  private:
+  /// The processed cloud and the block means (the dense ICP source) into the features.
+  void copy_cloud(GeometricFeatures& out) const;
+
 
   bool configured_ = false;
   GeometryConfig config_;
