@@ -63,14 +63,19 @@ std::uint64_t key_bits(double key) {
 
 // Sorts entries by (key, index) for keys ≥ 0 (no NaN): the bits of a non-negative double order
 // as the values do, so a stable least-significant-digit radix sort of entries that start in
-// index order gives the same order as the comparison sort, in O(n) per 11-bit digit. Digits that
-// every key shares (the exponent's high bits, mostly) are skipped.
+// index order gives the same order as the comparison sort, in O(n) per 11-bit digit. Only the
+// keys' upper 32 bits (sign, exponent and 20 mantissa bits) go through the radix passes, three
+// instead of six: entries are then in (upper bits, index) order, and sorting the runs of equal
+// upper bits on the whole key finishes the job (runs are few and short: the upper bits resolve
+// a key to about 1e-6 of itself). Digits that every key shares
+// (the exponent's high bits, often) are skipped.
 void radix_sort(RobustWorkspace::RankEntry* entries, RobustWorkspace::RankEntry* scratch, int n,
                 int* counts) {
   constexpr int kBuckets = RobustWorkspace::kDigitBuckets;
+  constexpr int kFirstShift = 32;
   RobustWorkspace::RankEntry* from = entries;
   RobustWorkspace::RankEntry* to = scratch;
-  for (int shift = 0; shift < 64; shift += kDigitBits) {
+  for (int shift = kFirstShift; shift < 64; shift += kDigitBits) {
     std::fill(counts, counts + kBuckets, 0);
     for (int i = 0; i < n; ++i) ++counts[(key_bits(from[i].key) >> shift) & (kBuckets - 1)];
     if (counts[(key_bits(from[0].key) >> shift) & (kBuckets - 1)] == n) continue;  // one bucket
@@ -84,6 +89,31 @@ void radix_sort(RobustWorkspace::RankEntry* entries, RobustWorkspace::RankEntry*
     std::swap(from, to);
   }
   if (from != entries) std::copy(from, from + n, entries);
+  // Each run of equal upper bits by (key, index): by insertion when short, as they nearly all
+  // are, else by comparison sort (so that keys crowded into one run cost n log n, not n²).
+  constexpr int kLongRun = 16;
+  const auto by_key_then_index = [](const RobustWorkspace::RankEntry& a, const RobustWorkspace::RankEntry& b) {
+    return a.key < b.key || (a.key == b.key && a.index < b.index);
+  };
+  for (int begin = 0; begin < n;) {
+    const std::uint64_t upper = key_bits(entries[begin].key) >> kFirstShift;
+    int end = begin + 1;
+    while (end < n && key_bits(entries[end].key) >> kFirstShift == upper) ++end;
+    if (end - begin > kLongRun) {
+      std::sort(entries + begin, entries + end, by_key_then_index);
+    } else {
+      for (int i = begin + 1; i < end; ++i) {
+        const RobustWorkspace::RankEntry entry = entries[i];
+        int j = i;
+        while (j > begin && by_key_then_index(entry, entries[j - 1])) {
+          entries[j] = entries[j - 1];
+          --j;
+        }
+        entries[j] = entry;
+      }
+    }
+    begin = end;
+  }
 }
 
 }  // namespace

@@ -464,6 +464,10 @@ TEST(SortResiduals, RadixAndComparisonSortsAgreeOnTiesZerosAndWideRanges) {
       if (i % 7 == 0) v = 0.25;                                   // many exact ties
       if (i % 11 == 0) v = 0.0;
       if (i % 13 == 0) v = -0.0;
+      // Keys equal in their upper 32 bits, apart in the lower ones, in no particular order.
+      if (i % 17 == 0) v = 1.0 + std::ldexp(static_cast<double>((i * 7919) % 1000), -40);
+      // Runs of 7 such keys, each run in descending order of index.
+      if (i % 23 == 0) v = 3.0 + 1e-3 * (i / 161) + std::ldexp(static_cast<double>(6 - i / 23 % 7), -40);
       values[static_cast<std::size_t>(i)] = v;
     }
     std::copy(values.begin(), values.end(), workspace.sq_residuals());
