@@ -203,8 +203,9 @@ void BM_MatchExhaustive(benchmark::State& state) {
   if (!ready(state)) return;
   const DescriptorPair& d = descriptor_pair();
   DescriptorMatcher matcher;
-  (void)matcher.configure(1000, kShotSize,
-                          state.range(0) == 0 ? DescriptorMatcher::Kernel::kBest : DescriptorMatcher::Kernel::kPortable);
+  constexpr DescriptorMatcher::Kernel kKernels[] = {DescriptorMatcher::Kernel::kBest, DescriptorMatcher::Kernel::kPortable,
+                                                     DescriptorMatcher::Kernel::kFloat};
+  (void)matcher.configure(1000, kShotSize, kKernels[state.range(0)]);
   std::vector<DescriptorMatch> out(1000);
   int matches = 0;
   for (auto _ : state) {
@@ -213,9 +214,11 @@ void BM_MatchExhaustive(benchmark::State& state) {
   }
   state.counters["matches"] = matches;
   state.counters["avx2"] = matcher.uses_avx2() ? 1 : 0;
+  state.counters["vnni"] = matcher.uses_vnni() ? 1 : 0;
   state.SetLabel(std::to_string(d.na) + "x" + std::to_string(d.nb));
 }
-BENCHMARK(BM_MatchExhaustive)->Arg(0)->Arg(1)->ArgName("portable")->Unit(benchmark::kMicrosecond);
+// kernel 0: the best (8-bit pass where the CPU has AVX-512 VNNI), 1: portable, 2: float only.
+BENCHMARK(BM_MatchExhaustive)->Arg(0)->Arg(1)->Arg(2)->ArgName("kernel")->Unit(benchmark::kMicrosecond);
 
 struct DescriptorSet {
   const float* data = nullptr;

@@ -1,3 +1,5 @@
+#include <algorithm>
+#include <cmath>
 #include <random>
 #include <vector>
 
@@ -5,6 +7,7 @@
 
 #include "rankslam/geometry/matching.hpp"
 #include "rankslam/geometry/shot.hpp"
+#include "rankslam/parallel/thread_team.hpp"
 
 namespace rankslam::geometry {
 namespace {
@@ -88,7 +91,89 @@ TEST_P(MatcherTest, OddDimensionsAndLimits) {
 }
 
 INSTANTIATE_TEST_SUITE_P(Kernels, MatcherTest,
-                         ::testing::Values(DescriptorMatcher::Kernel::kBest, DescriptorMatcher::Kernel::kPortable));
+                         ::testing::Values(DescriptorMatcher::Kernel::kBest, DescriptorMatcher::Kernel::kFloat,
+                                           DescriptorMatcher::Kernel::kPortable));
+
+// Descriptors in near-identical pairs and near-ties, where an approximate pass could pick
+// another best: b_j is a_j plus noise of `noise` relative size, renormalised, so many rows have
+// several columns within a hair of their best.
+std::vector<float> perturbed(const std::vector<float>& from, int n, int dim, float noise, std::uint32_t seed) {
+  std::mt19937 rng(seed);
+  std::uniform_real_distribution<float> u(0.0F, 1.0F);
+  std::vector<float> d(from.begin(), from.begin() + static_cast<std::ptrdiff_t>(n) * dim);
+  for (int i = 0; i < n; ++i) {
+    double norm = 0.0;
+    for (int k = 0; k < dim; ++k) {
+      float& v = d[static_cast<std::size_t>(i * dim + k)];
+      v = std::max(0.0F, v + noise * (u(rng) - 0.5F));
+      norm += static_cast<double>(v) * static_cast<double>(v);
+    }
+    const auto inverse = static_cast<float>(1.0 / std::sqrt(std::max(norm, 1e-12)));
+    for (int k = 0; k < dim; ++k) d[static_cast<std::size_t>(i * dim + k)] *= inverse;
+  }
+  return d;
+}
+
+// The 8-bit pass only chooses which pairs the float kernel's sums are taken for: the matches and
+// distances are the float kernel's, bit for bit, on one thread and on a team.
+TEST(Matcher, TheEightBitPassGivesTheFloatKernelsMatches) {
+  if (!DescriptorMatcher::cpu_has_vnni()) GTEST_SKIP() << "no AVX-512 VNNI: the 8-bit pass does not run here";
+  parallel::ThreadTeam team;
+  ASSERT_EQ(team.start(2), "");
+  for (parallel::ThreadTeam* with : {static_cast<parallel::ThreadTeam*>(nullptr), &team}) {
+    for (const auto& [na, nb] : {std::pair{400, 400}, std::pair{397, 13}, std::pair{31, 400}, std::pair{1, 5}, std::pair{5, 1}}) {
+      for (const float noise : {0.0F, 1e-5F, 1e-3F, 0.03F}) {
+        const auto a = random_descriptors(na, kShotSize, 11);
+        // B's rows in threes, each three perturbed copies of one row of A: rows of A with
+        // several columns closer to each other than the 8-bit values can tell apart.
+        std::vector<float> sources(static_cast<std::size_t>(nb) * kShotSize);
+        for (int j = 0; j < nb; ++j) {
+          std::copy_n(a.begin() + static_cast<std::ptrdiff_t>(j / 3 % na) * kShotSize, kShotSize,
+                      sources.begin() + static_cast<std::ptrdiff_t>(j) * kShotSize);
+        }
+        auto b = perturbed(sources, nb, kShotSize, noise, 12);
+        // Some exact duplicates among B's rows: ties for A's rows.
+        for (int j = 1; j < nb; j += 7) {
+          std::copy_n(b.begin() + static_cast<std::ptrdiff_t>(j - 1) * kShotSize, kShotSize, b.begin() + static_cast<std::ptrdiff_t>(j) * kShotSize);
+        }
+        DescriptorMatcher eight_bit;
+        DescriptorMatcher float_only;
+        ASSERT_EQ(eight_bit.configure(400, kShotSize, DescriptorMatcher::Kernel::kBest, with), "");
+        ASSERT_EQ(float_only.configure(400, kShotSize, DescriptorMatcher::Kernel::kFloat, with), "");
+        ASSERT_TRUE(eight_bit.uses_vnni());
+        ASSERT_FALSE(float_only.uses_vnni());
+        std::vector<DescriptorMatch> got(400), expected(400);
+        const int n = eight_bit.match(a.data(), na, b.data(), nb, got);
+        ASSERT_EQ(n, float_only.match(a.data(), na, b.data(), nb, expected)) << na << "x" << nb << " noise " << noise;
+        EXPECT_GT(n, 0);
+        for (int k = 0; k < n; ++k) {
+          const auto m = static_cast<std::size_t>(k);
+          ASSERT_EQ(got[m].a, expected[m].a) << na << "x" << nb << " noise " << noise << " match " << k;
+          ASSERT_EQ(got[m].b, expected[m].b) << na << "x" << nb << " noise " << noise << " match " << k;
+          ASSERT_EQ(got[m].distance, expected[m].distance);
+        }
+      }
+    }
+  }
+}
+
+// A negative value has no unsigned byte: such descriptors go to the float kernel, same matches.
+TEST(Matcher, NegativeDescriptorsAreMatchedByTheFloatKernel) {
+  auto a = random_descriptors(50, kShotSize, 21);
+  auto b = random_descriptors(40, kShotSize, 22);
+  a[5] = -a[5] - 0.01F;
+  for (int j = 0; j < 40; j += 3) std::copy_n(a.begin() + static_cast<std::ptrdiff_t>(j) * kShotSize, kShotSize, b.begin() + static_cast<std::ptrdiff_t>(j) * kShotSize);
+  DescriptorMatcher matcher;
+  ASSERT_EQ(matcher.configure(50, kShotSize), "");
+  std::vector<DescriptorMatch> out(50);
+  const int n = matcher.match(a.data(), 50, b.data(), 40, out);
+  const auto expected = reference(a, 50, b, 40, kShotSize);
+  ASSERT_EQ(n, static_cast<int>(expected.size()));
+  for (int k = 0; k < n; ++k) {
+    EXPECT_EQ(out[static_cast<std::size_t>(k)].a, expected[static_cast<std::size_t>(k)].first);
+    EXPECT_EQ(out[static_cast<std::size_t>(k)].b, expected[static_cast<std::size_t>(k)].second);
+  }
+}
 
 TEST(Matcher, ConfigureRejectsBadSizes) {
   DescriptorMatcher matcher;
