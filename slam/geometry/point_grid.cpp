@@ -216,47 +216,34 @@ int PointGrid::gather_in_radius(const Eigen::Vector3f& q, float radius_m, const 
   written = 0;
   int support = 0;
   const float r2 = radius_m * radius_m;
-  const std::int32_t x0 = cell_coordinate(q.x() - radius_m);
-  const std::int32_t x1 = cell_coordinate(q.x() + radius_m);
-  const std::int32_t y0 = cell_coordinate(q.y() - radius_m);
-  const std::int32_t y1 = cell_coordinate(q.y() + radius_m);
-  const std::int32_t z0 = cell_coordinate(q.z() - radius_m);
-  const std::int32_t z1 = cell_coordinate(q.z() + radius_m);
 #ifdef RANKSLAM_GEOMETRY_HAVE_AVX2_GRID
   const bool avx2 = parallel::cpu_has_avx2();
 #endif
-  for (std::int32_t x = x0; x <= x1; ++x) {
-    for (std::int32_t y = y0; y <= y1; ++y) {
-      for (std::int32_t z = z0; z <= z1; ++z) {
-        const int c = find_cell(x, y, z);
-        if (c < 0) continue;
-        const Cell& cell = cell_list_[static_cast<std::size_t>(c)];
-        const auto b = static_cast<std::size_t>(cell.start);
+  for_each_cell_near(q, radius_m, [&](const Cell& cell) {
+    const auto b = static_cast<std::size_t>(cell.start);
 #ifdef RANKSLAM_GEOMETRY_HAVE_AVX2_GRID
-        if (avx2) {
-          gather_run_avx2(sorted_x_.data() + b, sorted_y_.data() + b, sorted_z_.data() + b,
-                          sorted_.data() + b, q, r2, cell.count, out, written, support);
-          continue;
-        }
-#endif
-        for (std::size_t j = b; j < b + static_cast<std::size_t>(cell.count); ++j) {
-          const float dx = sorted_x_[j] - q.x();
-          const float dy = sorted_y_[j] - q.y();
-          const float dz = sorted_z_[j] - q.z();
-          const float d2 = dx * dx + (dy * dy + dz * dz);
-          if (!(d2 <= r2)) continue;
-          ++support;
-          if (d2 == 0.0F || written == out.capacity) continue;
-          const auto k = static_cast<std::size_t>(written++);
-          out.dx[k] = dx;
-          out.dy[k] = dy;
-          out.dz[k] = dz;
-          out.d2[k] = d2;
-          out.index[k] = sorted_[j];
-        }
-      }
+    if (avx2) {
+      gather_run_avx2(sorted_x_.data() + b, sorted_y_.data() + b, sorted_z_.data() + b,
+                      sorted_.data() + b, q, r2, cell.count, out, written, support);
+      return;
     }
-  }
+#endif
+    for (std::size_t j = b; j < b + static_cast<std::size_t>(cell.count); ++j) {
+      const float dx = sorted_x_[j] - q.x();
+      const float dy = sorted_y_[j] - q.y();
+      const float dz = sorted_z_[j] - q.z();
+      const float d2 = dx * dx + (dy * dy + dz * dz);
+      if (!(d2 <= r2)) continue;
+      ++support;
+      if (d2 == 0.0F || written == out.capacity) continue;
+      const auto k = static_cast<std::size_t>(written++);
+      out.dx[k] = dx;
+      out.dy[k] = dy;
+      out.dz[k] = dz;
+      out.d2[k] = d2;
+      out.index[k] = sorted_[j];
+    }
+  });
   return support;
 }
 

@@ -56,31 +56,18 @@ class PointGrid {
   template <class Visit>
   void for_each_in_radius(const Eigen::Vector3f& q, float radius_m, Visit&& visit) const {
     const float r2 = radius_m * radius_m;
-    const std::int32_t x0 = cell_coordinate(q.x() - radius_m);
-    const std::int32_t x1 = cell_coordinate(q.x() + radius_m);
-    const std::int32_t y0 = cell_coordinate(q.y() - radius_m);
-    const std::int32_t y1 = cell_coordinate(q.y() + radius_m);
-    const std::int32_t z0 = cell_coordinate(q.z() - radius_m);
-    const std::int32_t z1 = cell_coordinate(q.z() + radius_m);
     std::array<int, kRadiusChunk> hits{};
     std::array<float, kRadiusChunk> hit_d2{};
-    for (std::int32_t x = x0; x <= x1; ++x) {
-      for (std::int32_t y = y0; y <= y1; ++y) {
-        for (std::int32_t z = z0; z <= z1; ++z) {
-          const int c = find_cell(x, y, z);
-          if (c < 0) continue;
-          const Cell& cell = cell_list_[static_cast<std::size_t>(c)];
-          const int end = cell.start + cell.count;
-          for (int begin = cell.start; begin < end; begin += kRadiusChunk) {
-            const int found = within_radius(q, r2, begin, std::min(kRadiusChunk, end - begin),
-                                            hits.data(), hit_d2.data());
-            for (int h = 0; h < found; ++h) {
-              visit(hits[static_cast<std::size_t>(h)], hit_d2[static_cast<std::size_t>(h)]);
-            }
-          }
+    for_each_cell_near(q, radius_m, [&](const Cell& cell) {
+      const int end = cell.start + cell.count;
+      for (int begin = cell.start; begin < end; begin += kRadiusChunk) {
+        const int found = within_radius(q, r2, begin, std::min(kRadiusChunk, end - begin),
+                                        hits.data(), hit_d2.data());
+        for (int h = 0; h < found; ++h) {
+          visit(hits[static_cast<std::size_t>(h)], hit_d2[static_cast<std::size_t>(h)]);
         }
       }
-    }
+    });
   }
 
   /// Where gather_in_radius writes: per point its offset p − q, squared distance and index.
@@ -117,6 +104,25 @@ class PointGrid {
     std::uint32_t generation = 0;
   };
   [[nodiscard]] std::size_t slot_of(std::int32_t x, std::int32_t y, std::int32_t z) const;
+  /// Calls visit_cell(cell) for every non-empty cell of the box around q ± radius_m, x, y, z
+  /// ascending.
+  template <class VisitCell>
+  void for_each_cell_near(const Eigen::Vector3f& q, float radius_m, VisitCell&& visit_cell) const {
+    const std::int32_t x0 = cell_coordinate(q.x() - radius_m);
+    const std::int32_t x1 = cell_coordinate(q.x() + radius_m);
+    const std::int32_t y0 = cell_coordinate(q.y() - radius_m);
+    const std::int32_t y1 = cell_coordinate(q.y() + radius_m);
+    const std::int32_t z0 = cell_coordinate(q.z() - radius_m);
+    const std::int32_t z1 = cell_coordinate(q.z() + radius_m);
+    for (std::int32_t x = x0; x <= x1; ++x) {
+      for (std::int32_t y = y0; y <= y1; ++y) {
+        for (std::int32_t z = z0; z <= z1; ++z) {
+          const int c = find_cell(x, y, z);
+          if (c >= 0) visit_cell(cell_list_[static_cast<std::size_t>(c)]);
+        }
+      }
+    }
+  }
   /// The points at sorted positions [begin, begin + count) within r2 of q (squared distance
   /// ≤ r2), in order: their indices and squared distances into the outputs; returns how many.
   /// From the coordinates kept in sorted order, 8 at a time with AVX2 where the CPU has it.
