@@ -228,6 +228,28 @@ __attribute__((target("avx2,fma"), always_inline)) inline void add_blocks_avx2(
   sums[9] = _mm256_fmadd_ps(wd[2], d[2], sums[9]);
 }
 
+// 8 blocks of a window row from `block` on, the first `lanes` of them inside the window.
+struct WindowGroup {
+  std::int32_t block;
+  float lanes;
+};
+
+// The groups' blocks of both layers added to the lane sums, in order.
+__attribute__((target("avx2,fma"), always_inline)) inline void sum_window_groups(
+    const BlockImage& blocks, const WindowGroup* groups, int count, const __m256 (&center)[3],
+    __m256 radius2, __m256 (&sums)[10]) {
+  const __m256 lane_index = _mm256_setr_ps(0.0F, 1.0F, 2.0F, 3.0F, 4.0F, 5.0F, 6.0F, 7.0F);
+  for (int g = 0; g < count; ++g) {
+    const auto b = static_cast<std::size_t>(groups[g].block);
+    const __m256 valid = _mm256_cmp_ps(lane_index, _mm256_set1_ps(groups[g].lanes), _CMP_LT_OQ);
+    add_blocks_avx2(blocks.front, b, center, radius2, valid, sums);
+    const __m256 back = _mm256_and_ps(_mm256_loadu_ps(blocks.back.weight.data() + b), valid);
+    if (_mm256_movemask_ps(_mm256_cmp_ps(back, _mm256_setzero_ps(), _CMP_GT_OQ)) != 0) {
+      add_blocks_avx2(blocks.back, b, center, radius2, valid, sums);
+    }
+  }
+}
+
 // The unstrided window of organised_normal, 8 blocks of a row at a time (AVX2 and FMA, chosen
 // at run time): the same sums as the portable 4-block loop there, in another order and with
 // fused multiply-adds (normals within 0.1° of it, test/unit/geometry normals_test). The far
@@ -236,11 +258,16 @@ __attribute__((target("avx2,fma"))) void window_moments_avx2(const BlockImage& b
                                                               const Eigen::Vector3f& center, int bu,
                                                               int bv, int steps, float half_blocks,
                                                               float r2, Moments& m) {
-  const __m256 lane_index = _mm256_setr_ps(0.0F, 1.0F, 2.0F, 3.0F, 4.0F, 5.0F, 6.0F, 7.0F);
   const __m256 radius2 = _mm256_set1_ps(r2);
   const __m256 c[3] = {_mm256_set1_ps(center.x()), _mm256_set1_ps(center.y()), _mm256_set1_ps(center.z())};
   __m256 sums[10];
   for (__m256& sum : sums) sum = _mm256_setzero_ps();
+  // The window's groups of 8 blocks are listed first (rows ascending, then columns), then summed
+  // in one loop: the rows' varying group counts would otherwise end each row's loop on a
+  // mispredicted branch in the middle of the vector work.
+  constexpr int kMaxGroups = 64;
+  std::array<WindowGroup, kMaxGroups> groups;
+  int listed = 0;
   const float reach = half_blocks + 1.0F;
   for (int v = std::max(bv - steps, 0); v <= std::min(bv + steps, blocks.height - 1); ++v) {
     const auto dv = static_cast<float>(v - bv);
@@ -248,16 +275,15 @@ __attribute__((target("avx2,fma"))) void window_moments_avx2(const BlockImage& b
     const int u_lo = std::max(bu - span, 0);
     const int u_hi = std::min(bu + span, blocks.width - 1);
     for (int u = u_lo; u <= u_hi; u += 8) {
-      const std::size_t b = blocks.index(u, v);
-      const __m256 valid =
-          _mm256_cmp_ps(lane_index, _mm256_set1_ps(static_cast<float>(u_hi - u + 1)), _CMP_LT_OQ);
-      add_blocks_avx2(blocks.front, b, c, radius2, valid, sums);
-      const __m256 back = _mm256_and_ps(_mm256_loadu_ps(blocks.back.weight.data() + b), valid);
-      if (_mm256_movemask_ps(_mm256_cmp_ps(back, _mm256_setzero_ps(), _CMP_GT_OQ)) != 0) {
-        add_blocks_avx2(blocks.back, b, c, radius2, valid, sums);
+      if (listed == kMaxGroups) {
+        sum_window_groups(blocks, groups.data(), listed, c, radius2, sums);
+        listed = 0;
       }
+      groups[static_cast<std::size_t>(listed++)] =
+          WindowGroup{static_cast<std::int32_t>(blocks.index(u, v)), static_cast<float>(u_hi - u + 1)};
     }
   }
+  sum_window_groups(blocks, groups.data(), listed, c, radius2, sums);
   m.n += horizontal_sum(sums[0]);
   m.sx += horizontal_sum(sums[1]);
   m.sy += horizontal_sum(sums[2]);
