@@ -61,14 +61,19 @@ std::uint64_t key_bits(double key) {
   return bits;
 }
 
+// The order of the sorted residuals: by key, equal keys by index.
+bool ranks_before(const RobustWorkspace::RankEntry& a, const RobustWorkspace::RankEntry& b) {
+  return a.key < b.key || (a.key == b.key && a.index < b.index);
+}
+
 // Sorts entries by (key, index) for keys ≥ 0 (no NaN): the bits of a non-negative double order
 // as the values do, so a stable least-significant-digit radix sort of entries that start in
 // index order gives the same order as the comparison sort, in O(n) per 11-bit digit. Only the
 // keys' upper 32 bits (sign, exponent and 20 mantissa bits) go through the radix passes, three
 // instead of six: entries are then in (upper bits, index) order, and sorting the runs of equal
 // upper bits on the whole key finishes the job (runs are few and short: the upper bits resolve
-// a key to about 1e-6 of itself). Digits that every key shares
-// (the exponent's high bits, often) are skipped.
+// a key to about 1e-6 of itself). Digits that every key shares (the exponent's high bits, often)
+// are skipped.
 void radix_sort(RobustWorkspace::RankEntry* entries, RobustWorkspace::RankEntry* scratch, int n,
                 int* counts) {
   constexpr int kBuckets = RobustWorkspace::kDigitBuckets;
@@ -89,29 +94,12 @@ void radix_sort(RobustWorkspace::RankEntry* entries, RobustWorkspace::RankEntry*
     std::swap(from, to);
   }
   if (from != entries) std::copy(from, from + n, entries);
-  // Each run of equal upper bits by (key, index): by insertion when short, as they nearly all
-  // are, else by comparison sort (so that keys crowded into one run cost n log n, not n²).
-  constexpr int kLongRun = 16;
-  const auto by_key_then_index = [](const RobustWorkspace::RankEntry& a, const RobustWorkspace::RankEntry& b) {
-    return a.key < b.key || (a.key == b.key && a.index < b.index);
-  };
+  // Each run of equal upper bits by (key, index) (std::sort sorts short runs by insertion).
   for (int begin = 0; begin < n;) {
     const std::uint64_t upper = key_bits(entries[begin].key) >> kFirstShift;
     int end = begin + 1;
     while (end < n && key_bits(entries[end].key) >> kFirstShift == upper) ++end;
-    if (end - begin > kLongRun) {
-      std::sort(entries + begin, entries + end, by_key_then_index);
-    } else {
-      for (int i = begin + 1; i < end; ++i) {
-        const RobustWorkspace::RankEntry entry = entries[i];
-        int j = i;
-        while (j > begin && by_key_then_index(entry, entries[j - 1])) {
-          entries[j] = entries[j - 1];
-          --j;
-        }
-        entries[j] = entry;
-      }
-    }
+    if (end - begin > 1) std::sort(entries + begin, entries + end, ranks_before);
     begin = end;
   }
 }
@@ -131,10 +119,7 @@ void sort_residuals(RobustWorkspace& workspace, int n) {
     for (int i = 0; i < n; ++i) entries[i].key += 0.0;
     radix_sort(entries, workspace.rank_scratch(), n, workspace.digit_counts());
   } else {
-    std::sort(entries, entries + n,
-              [](const RobustWorkspace::RankEntry& a, const RobustWorkspace::RankEntry& b) {
-                return a.key < b.key || (a.key == b.key && a.index < b.index);
-              });
+    std::sort(entries, entries + n, ranks_before);
   }
   int* order = workspace.order();
   for (int i = 0; i < n; ++i) {
