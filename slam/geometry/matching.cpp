@@ -327,24 +327,32 @@ struct RowBound {
   float of_norm;
 };
 
-// Per j < count (a multiple of 8) of one row: the approximate value's lower bound s' − ε and
-// upper bound s' + ε; returns the largest lower bound and raises column_lower[j] to each.
+// B's per-row terms of ε: 1/scale, L1 norm, L2 norm (padding rows zero).
+struct ColumnTerms {
+  const float* inverse;
+  const float* l1;
+  const float* norm;
+};
+
+// ε of one row of A with the 8 rows of B from j on.
+__attribute__((target("avx2,fma"), always_inline)) inline __m256 pair_bounds(const RowBound& bound,
+                                                                            const ColumnTerms& b, int j) {
+  return _mm256_fmadd_ps(_mm256_set1_ps(bound.of_inverse), _mm256_loadu_ps(b.inverse + j),
+                         _mm256_fmadd_ps(_mm256_set1_ps(bound.of_l1), _mm256_loadu_ps(b.l1 + j),
+                                         _mm256_fmadd_ps(_mm256_set1_ps(bound.of_norm), _mm256_loadu_ps(b.norm + j),
+                                                         _mm256_set1_ps(1e-6F))));
+}
+
+// Per j < count (a multiple of 8) of one row: the approximate value's lower bound s' − ε;
+// returns the largest and raises column_lower[j] to each.
 __attribute__((target("avx2,fma"))) float row_lower_bounds(const float* approximate, const RowBound& bound,
-                                                           const float* inverse_b, const float* l1_b,
-                                                           const float* norm_b, int count, int valid,
+                                                           const ColumnTerms& terms, int count, int valid,
                                                            float* column_lower) {
-  const __m256 a = _mm256_set1_ps(bound.of_inverse);
-  const __m256 b = _mm256_set1_ps(bound.of_l1);
-  const __m256 c = _mm256_set1_ps(bound.of_norm);
-  const __m256 floor = _mm256_set1_ps(1e-6F);
   const __m256 lane = _mm256_setr_ps(0.0F, 1.0F, 2.0F, 3.0F, 4.0F, 5.0F, 6.0F, 7.0F);
   const __m256 lowest = _mm256_set1_ps(-std::numeric_limits<float>::infinity());
   __m256 best = lowest;
   for (int j = 0; j < count; j += 8) {
-    const __m256 epsilon = _mm256_fmadd_ps(a, _mm256_loadu_ps(inverse_b + j),
-                                           _mm256_fmadd_ps(b, _mm256_loadu_ps(l1_b + j),
-                                                           _mm256_fmadd_ps(c, _mm256_loadu_ps(norm_b + j), floor)));
-    __m256 lower = _mm256_sub_ps(_mm256_loadu_ps(approximate + j), epsilon);
+    __m256 lower = _mm256_sub_ps(_mm256_loadu_ps(approximate + j), pair_bounds(bound, terms, j));
     // Columns past the valid ones (padding) bound nothing.
     lower = _mm256_blendv_ps(lowest, lower, _mm256_cmp_ps(lane, _mm256_set1_ps(static_cast<float>(valid - j)), _CMP_LT_OQ));
     best = _mm256_max_ps(best, lower);
@@ -358,20 +366,12 @@ __attribute__((target("avx2,fma"))) float row_lower_bounds(const float* approxim
 // The j < valid (count: valid rounded up to 8) whose upper bound s' + ε reaches limits[j] (or
 // limits[0] for every j when `one_limit`), ascending, into `out`; returns how many.
 __attribute__((target("avx2,fma"))) int reaching(const float* approximate, const RowBound& bound,
-                                                 const float* inverse_b, const float* l1_b,
-                                                 const float* norm_b, const float* limits, bool one_limit,
-                                                 int count, int valid, int* out) {
-  const __m256 a = _mm256_set1_ps(bound.of_inverse);
-  const __m256 b = _mm256_set1_ps(bound.of_l1);
-  const __m256 c = _mm256_set1_ps(bound.of_norm);
-  const __m256 floor = _mm256_set1_ps(1e-6F);
+                                                 const ColumnTerms& terms, const float* limits,
+                                                 bool one_limit, int count, int valid, int* out) {
   const __m256 single = _mm256_set1_ps(limits[0]);
   int found = 0;
   for (int j = 0; j < count; j += 8) {
-    const __m256 epsilon = _mm256_fmadd_ps(a, _mm256_loadu_ps(inverse_b + j),
-                                           _mm256_fmadd_ps(b, _mm256_loadu_ps(l1_b + j),
-                                                           _mm256_fmadd_ps(c, _mm256_loadu_ps(norm_b + j), floor)));
-    const __m256 upper = _mm256_add_ps(_mm256_loadu_ps(approximate + j), epsilon);
+    const __m256 upper = _mm256_add_ps(_mm256_loadu_ps(approximate + j), pair_bounds(bound, terms, j));
     const __m256 limit = one_limit ? single : _mm256_loadu_ps(limits + j);
     auto mask = static_cast<unsigned>(_mm256_movemask_ps(_mm256_cmp_ps(upper, limit, _CMP_GE_OQ)));
     while (mask != 0) {
@@ -454,7 +454,7 @@ std::string DescriptorMatcher::configure(int max_descriptors, int dimension, Ker
     norm_a_.assign(rows_a, 0.0F);
     norm_b_.assign(rows_b, 0.0F);
     approximate_.assign(rows_a * rows_b, 0.0F);
-    column_best_.assign(rows_b * blocks, 0.0F);
+    column_lower_.assign(rows_b * blocks, 0.0F);
     candidates_.assign(rows_b * blocks, 0);
   }
   capacity_ = max_descriptors;
@@ -575,6 +575,7 @@ bool DescriptorMatcher::match_8bit(const float* a, int count_a, const float* b, 
     std::fill_n(quantised_b_.begin() + static_cast<std::ptrdiff_t>(j) * padded, padded, std::int8_t{0});
     inverse_scale_b_[r] = l1_b_[r] = norm_b_[r] = 0.0F;
   }
+  const ColumnTerms terms{inverse_scale_b_.data(), l1_b_.data(), norm_b_.data()};
   const auto bound_of_row = [&](int i) {
     const auto r = static_cast<std::size_t>(i);
     constexpr float kRoundUp = 1.0001F;
@@ -592,7 +593,7 @@ bool DescriptorMatcher::match_8bit(const float* a, int count_a, const float* b, 
   constexpr float kLowest = -std::numeric_limits<float>::infinity();
   const int threads = parallel::team_size(team_);
   for (int thread = 0; thread < threads; ++thread) {
-    std::fill_n(column_best_.begin() + static_cast<std::ptrdiff_t>(thread) * stride, columns, kLowest);
+    std::fill_n(column_lower_.begin() + static_cast<std::ptrdiff_t>(thread) * stride, columns, kLowest);
   }
   // Rows in chunks of whole 3-row blocks: the approximate values, then each row's best among
   // the columns whose upper bound reaches the row's largest lower bound (every column that can
@@ -604,15 +605,13 @@ bool DescriptorMatcher::match_8bit(const float* a, int count_a, const float* b, 
                             inverse_scale_a_.data() + i, quantised_b_.data(), inverse_scale_b_.data(),
                             columns, padded, approximate_.data() + static_cast<std::ptrdiff_t>(i) * stride, stride);
     }
-    float* column_lower = column_best_.data() + static_cast<std::ptrdiff_t>(thread) * stride;
+    float* column_lower = column_lower_.data() + static_cast<std::ptrdiff_t>(thread) * stride;
     int* candidates = candidates_.data() + static_cast<std::ptrdiff_t>(thread) * stride;
     for (int i = first; i < end; ++i) {
       const float* row = approximate_.data() + static_cast<std::ptrdiff_t>(i) * stride;
       const RowBound bound = bound_of_row(i);
-      const float row_lower = row_lower_bounds(row, bound, inverse_scale_b_.data(), l1_b_.data(),
-                                               norm_b_.data(), columns, count_b, column_lower);
-      const int found = reaching(row, bound, inverse_scale_b_.data(), l1_b_.data(), norm_b_.data(),
-                                 &row_lower, true, columns, count_b, candidates);
+      const float row_lower = row_lower_bounds(row, bound, terms, columns, count_b, column_lower);
+      const int found = reaching(row, bound, terms, &row_lower, true, columns, count_b, candidates);
       float best = kLowest;
       int arg = -1;
       for (int c = 0; c < found; ++c) {
@@ -628,9 +627,9 @@ bool DescriptorMatcher::match_8bit(const float* a, int count_a, const float* b, 
     }
   });
   for (int thread = 1; thread < threads; ++thread) {
-    const float* other = column_best_.data() + static_cast<std::ptrdiff_t>(thread) * stride;
+    const float* other = column_lower_.data() + static_cast<std::ptrdiff_t>(thread) * stride;
     for (int j = 0; j < columns; ++j) {
-      column_best_[static_cast<std::size_t>(j)] = std::max(column_best_[static_cast<std::size_t>(j)], other[j]);
+      column_lower_[static_cast<std::size_t>(j)] = std::max(column_lower_[static_cast<std::size_t>(j)], other[j]);
     }
   }
   // Each column's best among the rows whose upper bound reaches the column's largest lower
@@ -647,8 +646,8 @@ bool DescriptorMatcher::match_8bit(const float* a, int count_a, const float* b, 
     int* candidates = candidates_.data() + static_cast<std::ptrdiff_t>(thread) * stride;
     for (int i = first; i < end; ++i) {
       const float* row = approximate_.data() + static_cast<std::ptrdiff_t>(i) * stride;
-      const int found = reaching(row, bound_of_row(i), inverse_scale_b_.data(), l1_b_.data(), norm_b_.data(),
-                                 column_best_.data(), false, columns, count_b, candidates);
+      const int found = reaching(row, bound_of_row(i), terms, column_lower_.data(), false, columns,
+                                 count_b, candidates);
       for (int c = 0; c < found; ++c) {
         const int j = candidates[c];
         const float similarity = exact(i, j);

@@ -90,7 +90,7 @@ class DescriptorMatcher {
   std::vector<std::int8_t> quantised_b_;
   std::vector<float> inverse_scale_a_, inverse_scale_b_, l1_a_, l1_b_, norm_a_, norm_b_;
   std::vector<float> approximate_;
-  std::vector<float> column_best_;
+  std::vector<float> column_lower_;
   std::vector<int> candidates_;
 };
 
