@@ -112,9 +112,25 @@ bool PointGrid::build(std::span<const Eigen::Vector3f> points, float cell_m) {
 namespace {
 
 #ifdef RANKSLAM_GEOMETRY_HAVE_AVX2_GRID
-// PointGrid::within_radius 8 points at a time (AVX2, chosen at run time): each squared distance
-// as Eigen's squaredNorm of a 3-vector sums it, x² + (y² + z²), without FMA, so the same values.
-// Returns the hits of the whole blocks of 8; `done` is how many points those covered.
+// The offsets p − q of 8 points and their squared distances, x² + (y² + z²) as Eigen's
+// squaredNorm of a 3-vector sums it, without FMA: the values of the portable loops.
+struct Offsets {
+  __m256 dx, dy, dz, d2;
+};
+__attribute__((target("avx2"), always_inline)) inline Offsets offsets_avx2(const float* xs, const float* ys,
+                                                                          const float* zs, __m256 qx, __m256 qy,
+                                                                          __m256 qz) {
+  Offsets o{};
+  o.dx = _mm256_sub_ps(_mm256_loadu_ps(xs), qx);
+  o.dy = _mm256_sub_ps(_mm256_loadu_ps(ys), qy);
+  o.dz = _mm256_sub_ps(_mm256_loadu_ps(zs), qz);
+  o.d2 = _mm256_add_ps(_mm256_mul_ps(o.dx, o.dx), _mm256_add_ps(_mm256_mul_ps(o.dy, o.dy), _mm256_mul_ps(o.dz, o.dz)));
+  return o;
+}
+
+// PointGrid::within_radius 8 points at a time (AVX2, chosen at run time): the squared distances
+// of offsets_avx2, so the same values as the portable loop. Returns the hits of the whole blocks
+// of 8; `done` is how many points those covered.
 __attribute__((target("avx2"))) int within_radius_avx2(const float* xs, const float* ys,
                                                        const float* zs, const int* indices,
                                                        const Eigen::Vector3f& q, float r2,
@@ -128,11 +144,7 @@ __attribute__((target("avx2"))) int within_radius_avx2(const float* xs, const fl
   int found = 0;
   int k = 0;
   for (; k + 8 <= count; k += 8) {
-    const __m256 dx = _mm256_sub_ps(_mm256_loadu_ps(xs + k), qx);
-    const __m256 dy = _mm256_sub_ps(_mm256_loadu_ps(ys + k), qy);
-    const __m256 dz = _mm256_sub_ps(_mm256_loadu_ps(zs + k), qz);
-    const __m256 sum = _mm256_add_ps(_mm256_mul_ps(dx, dx),
-                                     _mm256_add_ps(_mm256_mul_ps(dy, dy), _mm256_mul_ps(dz, dz)));
+    const __m256 sum = offsets_avx2(xs + k, ys + k, zs + k, qx, qy, qz).d2;
     unsigned inside = static_cast<unsigned>(_mm256_movemask_ps(_mm256_cmp_ps(sum, limit, _CMP_LE_OQ)));
     if (inside == 0) continue;
     _mm256_store_ps(d2, sum);
@@ -180,11 +192,7 @@ __attribute__((target("avx2,popcnt"))) void gather_run_avx2(const float* xs, con
   const __m256i lane_index = _mm256_setr_epi32(0, 1, 2, 3, 4, 5, 6, 7);
   const __m256i nibble_shift = _mm256_setr_epi32(0, 4, 8, 12, 16, 20, 24, 28);
   for (int k = 0; k < count; k += 8) {
-    const __m256 dx = _mm256_sub_ps(_mm256_loadu_ps(xs + k), qx);
-    const __m256 dy = _mm256_sub_ps(_mm256_loadu_ps(ys + k), qy);
-    const __m256 dz = _mm256_sub_ps(_mm256_loadu_ps(zs + k), qz);
-    const __m256 sum = _mm256_add_ps(_mm256_mul_ps(dx, dx),
-                                     _mm256_add_ps(_mm256_mul_ps(dy, dy), _mm256_mul_ps(dz, dz)));
+    const auto [dx, dy, dz, sum] = offsets_avx2(xs + k, ys + k, zs + k, qx, qy, qz);
     const __m256 in_run = _mm256_castsi256_ps(_mm256_cmpgt_epi32(_mm256_set1_epi32(count - k), lane_index));
     const __m256 inside = _mm256_and_ps(in_run, _mm256_cmp_ps(sum, limit, _CMP_LE_OQ));
     const auto inside_mask = static_cast<unsigned>(_mm256_movemask_ps(inside));
