@@ -264,7 +264,7 @@ __attribute__((target("avx2"))) void vote_bins_avx2(const VoteArrays& v, const V
     const __m256 previous =
         _mm256_sub_ps(previous_raw, _mm256_and_ps(_mm256_set1_ps(kBins), _mm256_cmp_ps(previous_raw, _mm256_set1_ps(kBins), _CMP_GE_OQ)));
     avx_store_bins(v.cosine + k,
-                     _mm256_add_ps(volume_base, avx_select(_mm256_cmp_ps(bin_distance, zero, _CMP_GT_OQ), next, previous)));
+                   _mm256_add_ps(volume_base, avx_select(_mm256_cmp_ps(bin_distance, zero, _CMP_GT_OQ), next, previous)));
     _mm256_storeu_ps(v.cosine_weight + k, avx_abs(bin_distance));
 
     // Radial shell.
@@ -273,7 +273,7 @@ __attribute__((target("avx2"))) void vote_bins_avx2(const VoteArrays& v, const V
     const __m256 radial_vote = avx_select(outer, _mm256_cmp_ps(radius_distance, zero, _CMP_LE_OQ),
                                       _mm256_cmp_ps(radius_distance, zero, _CMP_GE_OQ));
     avx_store_bins(v.radial + k,
-                     _mm256_add_ps(own, _mm256_and_ps(radial_vote, avx_select(outer, _mm256_set1_ps(-2.0F * kStrideF), _mm256_set1_ps(2.0F * kStrideF)))));
+                   _mm256_add_ps(own, _mm256_and_ps(radial_vote, avx_select(outer, _mm256_set1_ps(-2.0F * kStrideF), _mm256_set1_ps(2.0F * kStrideF)))));
     _mm256_storeu_ps(v.radial_weight + k, _mm256_and_ps(radial_vote, avx_abs(radius_distance)));
 
     // Elevation.
@@ -295,7 +295,7 @@ __attribute__((target("avx2"))) void vote_bins_avx2(const VoteArrays& v, const V
     const __m256 elevation_vote = avx_select(lower, _mm256_cmp_ps(inclination_distance, zero, _CMP_LE_OQ),
                                          _mm256_cmp_ps(inclination_distance, zero, _CMP_GE_OQ));
     avx_store_bins(v.elevation + k,
-                     _mm256_add_ps(own, _mm256_and_ps(elevation_vote, avx_select(lower, _mm256_set1_ps(kStrideF), _mm256_set1_ps(-kStrideF)))));
+                   _mm256_add_ps(own, _mm256_and_ps(elevation_vote, avx_select(lower, _mm256_set1_ps(kStrideF), _mm256_set1_ps(-kStrideF)))));
     _mm256_storeu_ps(v.elevation_weight + k, _mm256_and_ps(elevation_vote, avx_abs(inclination_distance)));
 
     // Azimuth.

@@ -194,7 +194,6 @@ class GeometricFrontend {
   /// The processed cloud and the block means (the dense ICP source) into the features.
   void copy_cloud(GeometricFeatures& out) const;
 
-
   bool configured_ = false;
   GeometryConfig config_;
   FrontendCapacities capacities_;
