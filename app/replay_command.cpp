@@ -4,7 +4,7 @@
 #include "json_writer.hpp"
 #include "progress.hpp"
 #include "status_counts.hpp"
-#include "wheel_prior.hpp"
+#include "rankslam/nav/wheel_prior.hpp"
 
 #include "rankslam/eval/metrics.hpp"
 #include "rankslam/eval/plot.hpp"
@@ -55,7 +55,7 @@ struct FrameRecord {
   int geometric_matches = 0;
   int geometric_inliers = 0;
   double photometric_weight = 0.0;
-  slam::WheelCheck wheels;
+  nav::WheelCheck wheels;
 };
 
 /// Per-frame status and how vision compared with the wheels, for plots and checks.
@@ -193,7 +193,7 @@ int run_replay(const ReplayArgs& args) {
 
   // Wheel odometry from the recording's can.log, when it has one and the calibration describes
   // the wheels: the prior of every frame.
-  std::optional<WheelPrior> wheels;
+  std::optional<nav::WheelPrior> wheels;
   std::string wheels_off_reason;
   if (args.no_wheels) {
     wheels_off_reason = "--no-wheels";
@@ -254,12 +254,12 @@ int run_replay(const ReplayArgs& args) {
     for (const auto& warning : camera.take_warnings()) std::cerr << "\nwarning: " << warning << "\n";
     if (status == hal::ReadStatus::kEndOfStream) break;
     if (status != hal::ReadStatus::kOk) continue;
-    const slam::MotionPrior* prior = nullptr;
+    const nav::MotionPrior* prior = nullptr;
     if (wheels) {
       // The wheel frames in stamp order up to the camera frame's stamp and the first one after
       // it: the motion up to the stamp is known once the next wheel frame is in (at 100 Hz, at
       // most 10 ms later; a live camera frame takes longer than that to arrive).
-      const std::int64_t stamp_ns = recording_stamp_ns(frame.stamp_s);
+      const std::int64_t stamp_ns = nav::recording_stamp_ns(frame.stamp_s);
       while (next_can_frame < recording.can_frames.size()) {
         const hal::CanFrame& can_frame = recording.can_frames[next_can_frame++];
         const nav::WheelFrameResult fed = wheels->update(can_frame);

@@ -6,7 +6,7 @@
 #include "json_writer.hpp"
 #include "robot_config.hpp"
 #include "status_counts.hpp"
-#include "wheel_prior.hpp"
+#include "rankslam/nav/wheel_prior.hpp"
 
 #include "rankslam/eval/trajectory.hpp"
 #include "rankslam/hal/atomic_file.hpp"
@@ -85,7 +85,7 @@ struct WheelCounters {
 struct LiveWheels {
   std::mutex mutex;
   std::condition_variable advanced;  ///< a wheel frame was integrated
-  std::optional<WheelPrior> prior;   ///< absent when the calibration has no wheels section
+  std::optional<nav::WheelPrior> prior;   ///< absent when the calibration has no wheels section
   std::int64_t newest_arrival_ns = 0;  ///< monotonic time the newest wheel frame arrived
   bool receiving = false;              ///< the output thread's bus is open: frames sent now reach it
   /// Replay through the bus: the wheel frames played from the recording, whose stamps the
@@ -417,7 +417,7 @@ int run_live(const RunArgs& args) {
     }
   }
   StatusCounts status_counts;
-  slam::MotionPrior prior;
+  nav::MotionPrior prior;
 
   hal::RgbdFrame frame;
   bool interrupted = false;
@@ -452,8 +452,8 @@ int run_live(const RunArgs& args) {
       continue;
     }
     const std::int64_t capture_ns = hal::MonotonicClock{}.now_ns();
-    const slam::MotionPrior* frame_prior = nullptr;
-    const std::int64_t wheel_stamp_ns = replay_camera != nullptr ? recording_stamp_ns(frame.stamp_s) : frame.stamp_ns;
+    const nav::MotionPrior* frame_prior = nullptr;
+    const std::int64_t wheel_stamp_ns = replay_camera != nullptr ? nav::recording_stamp_ns(frame.stamp_s) : frame.stamp_ns;
     if (wheels.prior) {
       std::unique_lock lock(wheels.mutex);
       // The motion up to the frame is known once a wheel frame at or after its stamp is in. A live
@@ -467,7 +467,7 @@ int run_live(const RunArgs& args) {
         return wheels.prior->odometry().newest_stamp_ns() >= wheel_stamp_ns ||
                (playing ? player->finished() : !arriving());
       });
-      if (const slam::MotionPrior* wheel_prior = wheels.prior->prior_for(wheel_stamp_ns)) {
+      if (const nav::MotionPrior* wheel_prior = wheels.prior->prior_for(wheel_stamp_ns)) {
         prior = *wheel_prior;
         frame_prior = &prior;
       }

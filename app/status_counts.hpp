@@ -1,7 +1,7 @@
 #pragma once
 
 #include "json_writer.hpp"
-#include "wheel_prior.hpp"
+#include "rankslam/nav/wheel_prior.hpp"
 
 #include "rankslam/slam/slam_loop.hpp"
 
@@ -31,7 +31,7 @@ struct StatusCounts {
 
 /// The report.json entries `replay` and `run` share: `status_counts`, and how the wheels fared
 /// (`wheels` null when they were not used, for `wheels_off_reason`).
-inline void write_status_and_wheels(JsonWriter& json, const StatusCounts& counts, const WheelPrior* wheels,
+inline void write_status_and_wheels(JsonWriter& json, const StatusCounts& counts, const nav::WheelPrior* wheels,
                                     int slip_events, const std::string& wheels_off_reason) {
   json.begin_object("status_counts");
   json.integer("TRACKING", counts.tracking);
@@ -44,7 +44,7 @@ inline void write_status_and_wheels(JsonWriter& json, const StatusCounts& counts
     json.null("wheel_slip_events");
     return;
   }
-  const WheelPriorCounters& prior = wheels->counters();
+  const nav::WheelPriorCounters& prior = wheels->counters();
   const nav::WheelOdometryStats& odometry = wheels->odometry().stats();
   json.integer("wheel_slip_events", slip_events);
   json.integer("wheel_prior_frames", static_cast<long long>(prior.with_prior));

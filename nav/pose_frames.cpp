@@ -1,4 +1,5 @@
 #include "rankslam/nav/pose_frames.hpp"
+#include "rankslam/core/units.hpp"
 
 #include <algorithm>
 #include <cmath>
@@ -7,8 +8,6 @@
 namespace rankslam::nav {
 namespace {
 
-constexpr double kRadToDeg = 180.0 / std::numbers::pi;
-constexpr double kDegToRad = std::numbers::pi / 180.0;
 
 // Signals are laid out in one little-endian 64-bit word: bit n of the frame is bit n % 8 of
 // byte n / 8 (DBC "@1", Intel order).
@@ -85,13 +84,13 @@ PlanarPose to_planar_pose(const Eigen::Isometry3d& T) {
   pose.y_m = T.translation().y();
   pose.z_m = T.translation().z();
   const double sin_pitch = std::clamp(-R(2, 0), -1.0, 1.0);
-  pose.pitch_deg = std::asin(sin_pitch) * kRadToDeg;
+  pose.pitch_deg = rad_to_deg(std::asin(sin_pitch));
   if (std::abs(sin_pitch) < 1.0 - 1e-12) {
-    pose.yaw_deg = std::atan2(R(1, 0), R(0, 0)) * kRadToDeg;
-    pose.roll_deg = std::atan2(R(2, 1), R(2, 2)) * kRadToDeg;
+    pose.yaw_deg = rad_to_deg(std::atan2(R(1, 0), R(0, 0)));
+    pose.roll_deg = rad_to_deg(std::atan2(R(2, 1), R(2, 2)));
   } else {
     // Gimbal lock: only yaw - roll (or yaw + roll) is defined; put it all into yaw.
-    pose.yaw_deg = std::atan2(-R(0, 1), R(1, 1)) * kRadToDeg;
+    pose.yaw_deg = rad_to_deg(std::atan2(-R(0, 1), R(1, 1)));
     pose.roll_deg = 0.0;
   }
   return pose;
@@ -99,9 +98,9 @@ PlanarPose to_planar_pose(const Eigen::Isometry3d& T) {
 
 Eigen::Isometry3d to_isometry(const PlanarPose& pose) {
   Eigen::Isometry3d T = Eigen::Isometry3d::Identity();
-  T.linear() = (Eigen::AngleAxisd(pose.yaw_deg * kDegToRad, Eigen::Vector3d::UnitZ()) *
-                Eigen::AngleAxisd(pose.pitch_deg * kDegToRad, Eigen::Vector3d::UnitY()) *
-                Eigen::AngleAxisd(pose.roll_deg * kDegToRad, Eigen::Vector3d::UnitX()))
+  T.linear() = (Eigen::AngleAxisd(deg_to_rad(pose.yaw_deg), Eigen::Vector3d::UnitZ()) *
+                Eigen::AngleAxisd(deg_to_rad(pose.pitch_deg), Eigen::Vector3d::UnitY()) *
+                Eigen::AngleAxisd(deg_to_rad(pose.roll_deg), Eigen::Vector3d::UnitX()))
                    .toRotationMatrix();
   T.translation() = Eigen::Vector3d(pose.x_m, pose.y_m, pose.z_m);
   return T;

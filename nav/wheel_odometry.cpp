@@ -47,14 +47,6 @@ Eigen::Matrix3d lever_jacobian(double dx_m, double dy_m) {
 
 }  // namespace
 
-double wrap_angle(double angle_rad) {
-  constexpr double kTwoPi = 2.0 * std::numbers::pi;
-  double wrapped = angle_rad - kTwoPi * std::floor((angle_rad + std::numbers::pi) / kTwoPi);
-  // Rounding can land exactly on +π for inputs just below it.
-  if (wrapped >= std::numbers::pi) wrapped -= kTwoPi;
-  return wrapped;
-}
-
 Pose2d compose(const Pose2d& T_a_b, const Pose2d& T_b_c) {
   const double c = std::cos(T_a_b.yaw_rad);
   const double s = std::sin(T_a_b.yaw_rad);

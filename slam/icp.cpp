@@ -87,7 +87,7 @@ struct IcpRefiner::Impl {
   Eigen::Matrix3Xd pair_target;
 };
 
-IcpRefiner::IcpRefiner(const IcpSettings& settings, const DepthCameraModel& camera)
+IcpRefiner::IcpRefiner(const IcpSettings& settings, const camera::DepthCameraModel& camera)
     : settings_(settings), camera_(camera), impl_(std::make_unique<Impl>(cloud_capacity())) {}
 
 IcpRefiner::~IcpRefiner() = default;

@@ -1,4 +1,5 @@
 #include "rankslam/slam/orb_extractor.hpp"
+#include "rankslam/core/units.hpp"
 
 #include <algorithm>
 #include <cmath>
@@ -483,7 +484,7 @@ bool OrbExtractor::extract(const cv::Mat& gray) {
       const std::ptrdiff_t at = static_cast<std::ptrdiff_t>(it->y) * stride_ + it->x;
       const float angle = orientation(image + at);
       describe(smoothed + at, angle, descriptor_storage_.ptr(static_cast<int>(keypoints_.size())));
-      float degrees = angle * static_cast<float>(180.0 / std::numbers::pi);
+      float degrees = angle * static_cast<float>(rad_to_deg(1.0));
       if (degrees < 0.0F) degrees += 360.0F;
       keypoints_.emplace_back(cv::Point2f((static_cast<float>(it->x) + 0.5F) * level.scale_x - 0.5F,
                                           (static_cast<float>(it->y) + 0.5F) * level.scale_y - 0.5F),

@@ -25,7 +25,7 @@ void PhotometricFeatures::clear() {
 
 namespace {
 
-OrbExtractorSettings extractor_settings(const SlamConfig& config, const DepthCameraModel& camera, int fast_threshold) {
+OrbExtractorSettings extractor_settings(const SlamConfig& config, const camera::DepthCameraModel& camera, int fast_threshold) {
   OrbExtractorSettings settings;
   // With OpenCV's ORB in its place the extractor is left without image buffers.
   const bool used = config.orb_implementation == OrbImplementation::kFixedMemory;
@@ -40,7 +40,7 @@ OrbExtractorSettings extractor_settings(const SlamConfig& config, const DepthCam
 
 }  // namespace
 
-OrbFrontend::OrbFrontend(const SlamConfig& config, const DepthCameraModel& camera, int fast_threshold)
+OrbFrontend::OrbFrontend(const SlamConfig& config, const camera::DepthCameraModel& camera, int fast_threshold)
     : camera_(camera),
       min_depth_m_(static_cast<float>(config.min_depth_m)),
       max_depth_m_(static_cast<float>(config.max_depth_m)),

@@ -23,27 +23,15 @@ void for_each_inlier(const Eigen::Isometry3d& T_target_source, std::span<const E
 
 }  // namespace
 
-Matrix6d adjoint(const Eigen::Isometry3d& T) {
-  const Eigen::Matrix3d R = T.rotation();
-  const Eigen::Vector3d t = T.translation();
-  Eigen::Matrix3d t_cross;
-  t_cross << 0.0, -t.z(), t.y(), t.z(), 0.0, -t.x(), -t.y(), t.x(), 0.0;
-  Matrix6d result = Matrix6d::Zero();
-  result.topLeftCorner<3, 3>() = R;
-  result.bottomLeftCorner<3, 3>() = t_cross * R;
-  result.bottomRightCorner<3, 3>() = R;
-  return result;
-}
-
 Matrix6d step_prior_information(const Eigen::Isometry3d& T_target_prior, const Eigen::Isometry3d& T_frame_current,
                                 const Eigen::Matrix<double, 6, 1>& step_information) {
   // ξ_frame = Ad(T_frame_current)·ξ and ξ = Ad(M⁻¹)·ε.
-  const Matrix6d to_step = adjoint(T_frame_current) * adjoint(T_target_prior.inverse());
+  const Matrix6d to_step = lie::adjoint(T_frame_current) * lie::adjoint(T_target_prior.inverse());
   return to_step.transpose() * step_information.asDiagonal() * to_step;
 }
 
 Matrix6d prior_information_on_target(const Eigen::Isometry3d& T_target_prior, const Matrix6d& information_xi) {
-  const Matrix6d to_xi = adjoint(T_target_prior.inverse());  // ξ = Ad(M⁻¹)·ε
+  const Matrix6d to_xi = lie::adjoint(T_target_prior.inverse());  // ξ = Ad(M⁻¹)·ε
   const Matrix6d information = to_xi.transpose() * information_xi * to_xi;
   return 0.5 * (information + information.transpose());
 }
@@ -70,7 +58,7 @@ PlanarConstraint planar_constraint(const Eigen::Isometry3d& T_from_to, const Eig
   Eigen::Matrix<double, 6, 1> base_information;
   const double tilt_information = 1.0 / (tilt_sigma_rad * tilt_sigma_rad);
   base_information << tilt_information, tilt_information, 1.0, 1e-2, 1e-2, 1.0 / (height_sigma_m * height_sigma_m);
-  const Matrix6d to_base = adjoint(T_base_cam);
+  const Matrix6d to_base = lie::adjoint(T_base_cam);
   PlanarConstraint constraint;
   constraint.T_from_to = T_cam_base * planar * T_base_cam;
   constraint.information = to_base.transpose() * base_information.asDiagonal() * to_base;

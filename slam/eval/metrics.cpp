@@ -1,4 +1,5 @@
 #include "rankslam/eval/metrics.hpp"
+#include "rankslam/core/lie.hpp"
 
 #include <algorithm>
 #include <array>
@@ -101,11 +102,6 @@ double gt_difference_or_default(const SortedTrajectory& truth, double requested_
   return 2.0 * median_of(std::move(intervals_s));
 }
 
-/// Angle through the quaternion (atan2): accurate near zero, where acos((trace-1)/2) is not.
-double rotation_angle_deg(const Eigen::Isometry3d& pose) {
-  return Eigen::AngleAxisd(Eigen::Quaterniond(pose.linear())).angle() * 180.0 / std::numbers::pi;
-}
-
 /// A motion measured between two stamps against the ground truth's motion between the poses
 /// nearest them: E = (Q_0⁻¹·Q_1)⁻¹·measured (Sturm et al., IROS 2012), |t(E)| and angle(E).
 /// No figures when either stamp is more than max_gap_s from its nearest ground-truth stamp.
@@ -122,7 +118,7 @@ RelativePoseError error_against_truth(const SortedTrajectory& truth, double stam
   result.stamp_gt_from_s = truth.stamps_s[g0];
   result.stamp_gt_to_s = truth.stamps_s[g1];
   result.translation_m = error.translation().norm();
-  result.rotation_deg = rotation_angle_deg(error);
+  result.rotation_deg = lie::rotation_deg(error);
   return result;
 }
 

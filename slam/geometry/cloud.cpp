@@ -42,7 +42,7 @@ struct DepthRange {
 };
 
 // Camera-frame point of pixel (u, v) if its depth is valid and inside the pass-through.
-inline bool point_at(const cv::Mat& depth, const slam::DepthCameraModel& camera,
+inline bool point_at(const cv::Mat& depth, const camera::DepthCameraModel& camera,
                      const DepthRange& range, int u, int v, Eigen::Vector3f& p) {
   const std::uint16_t raw = depth.ptr<std::uint16_t>(v)[u];
   if (raw == 0) return false;
@@ -453,7 +453,7 @@ namespace {
 
 // The distance from each sampled pixel of row v (every stride-th from u = 1) to its nearest
 // valid 8-neighbour in 3D, NaN where the pixel or all its neighbours are invalid.
-void nearest_neighbour_distances(const cv::Mat& depth, const slam::DepthCameraModel& camera,
+void nearest_neighbour_distances(const cv::Mat& depth, const camera::DepthCameraModel& camera,
                                  const DepthRange& range, int v, int stride, double* out) {
   int k = 0;
   for (int u = 1; u + 1 < depth.cols; u += stride, ++k) {
@@ -490,7 +490,7 @@ float mean_of_finite(const double* distances, std::size_t count) {
 
 }  // namespace
 
-float organised_resolution(const cv::Mat& depth, const slam::DepthCameraModel& camera, int stride,
+float organised_resolution(const cv::Mat& depth, const camera::DepthCameraModel& camera, int stride,
                            float min_depth_m, float max_depth_m) {
   const DepthRange range{min_depth_m, max_depth_m, camera.metres(1)};
   stride = std::max(1, stride);
@@ -521,7 +521,7 @@ float CloudPreprocessor::resolution(const cv::Mat& depth) {
   return mean_of_finite(neighbour_distances_.data(), static_cast<std::size_t>(rows) * static_cast<std::size_t>(columns));
 }
 
-std::string CloudPreprocessor::configure(const slam::DepthCameraModel& camera,
+std::string CloudPreprocessor::configure(const camera::DepthCameraModel& camera,
                                          const GeometryConfig& config, int max_sampled_points,
                                          parallel::ThreadTeam* team) {
   max_points_ = 0;

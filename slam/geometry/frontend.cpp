@@ -1,4 +1,5 @@
 #include "rankslam/geometry/frontend.hpp"
+#include "rankslam/core/units.hpp"
 
 #include <algorithm>
 #include <cmath>
@@ -76,7 +77,7 @@ void GeometricCorrespondences::reserve(int capacity) {
   count = 0;
 }
 
-std::string GeometricFrontend::configure(const slam::DepthCameraModel& camera,
+std::string GeometricFrontend::configure(const camera::DepthCameraModel& camera,
                                          const GeometryConfig& config,
                                          const FrontendCapacities& capacities,
                                          parallel::ThreadTeam* team) {
@@ -333,7 +334,7 @@ FrameRegistration GeometricFrontend::register_frames(const GeometricFeatures& pr
                                    ? config_.motion_gate_translation_m
                                    : std::numeric_limits<double>::infinity();
       gate.max_rotation_rad = config_.motion_gate_rotation_deg > 0.0
-                                  ? config_.motion_gate_rotation_deg * 3.14159265358979323846 / 180.0
+                                  ? deg_to_rad(config_.motion_gate_rotation_deg)
                                   : std::numeric_limits<double>::infinity();
       const auto result = robust::estimate_msse(rigid_, msse, workspace_, sigmas, gate, &msse_team_);
       if (!result.ok()) {
@@ -392,7 +393,7 @@ FrameRegistration GeometricFrontend::register_frames(const GeometricFeatures& pr
     if (best.ok) start = RefinementStart::kMsse;
   }
   constexpr double kSameStartM = 0.02;
-  constexpr double kSameStartRad = 1.0 * 3.14159265358979323846 / 180.0;
+  constexpr double kSameStartRad = deg_to_rad(1.0);
   const bool distinct_guess =
       !registration.msse_ok ||
       robust::translation_difference_m(registration.T_previous_current, T_previous_current_guess) >

@@ -1,4 +1,5 @@
 #include "rankslam/geometry/keypoints.hpp"
+#include "rankslam/core/units.hpp"
 
 #include <algorithm>
 #include <bit>
@@ -301,7 +302,7 @@ void KeypointDetector::group(const SampledCloud& cloud,
   msse.hypotheses = config_.is3d_hypotheses;
   msse.min_inlier_fraction = config_.is3d_min_inlier_fraction;
   msse.refine_iterations = 0;  // the thesis' single refit on the group
-  const double max_scale_rad = config_.is3d_max_group_scale_deg * detail::kPi / 180.0;
+  const double max_scale_rad = deg_to_rad(config_.is3d_max_group_scale_deg);
   const int max_orientations =
       std::min(config_.is3d_max_orientations, KeypointStats::kMaxOrientations);
   while (grouping_.orientations < max_orientations && remaining >= min_group && remaining >= 3) {

@@ -12,7 +12,7 @@
 #include <omp.h>
 #include <ceres/rotation.h>
 
-#include "lie.hpp"
+#include "rankslam/core/lie.hpp"
 
 namespace rankslam::graph {
 namespace {

@@ -15,7 +15,7 @@
 #include "rankslam/replay/recording.hpp"
 #include "rankslam/replay/replay_camera.hpp"
 #include "rankslam/sim/simulator.hpp"
-#include "rankslam/slam/camera.hpp"
+#include "rankslam/camera/depth_camera.hpp"
 
 namespace rankslam::geometry::bench {
 
@@ -137,7 +137,7 @@ std::string run_geometric_odometry(const fs::path& root, const GeometryConfig& c
   result = OdometryResult{};
   replay::Recording recording;
   if (std::string error = replay::open_recording(root, recording); !error.empty()) return error;
-  const slam::DepthCameraModel camera(recording.calibration.rgb, recording.calibration.depth_scale);
+  const camera::DepthCameraModel camera(recording.calibration.rgb, recording.calibration.depth_scale);
   GeometricFrontend frontend;
   if (std::string error = frontend.configure(camera, config); !error.empty()) return error;
   GeometricFeatures previous = frontend.make_features();
@@ -228,10 +228,6 @@ std::string run_geometric_odometry(const fs::path& root, const GeometryConfig& c
     }
   }
   return {};
-}
-
-double rotation_deg(const Eigen::Isometry3d& T) {
-  return Eigen::AngleAxisd(T.rotation()).angle() * 180.0 / 3.14159265358979323846;
 }
 
 }  // namespace rankslam::geometry::bench

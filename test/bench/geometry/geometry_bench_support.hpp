@@ -73,7 +73,5 @@ struct OdometryResult {
                                                  const GeometryConfig& config,
                                                  OdometryResult& result, int max_frames = 0);
 
-/// Rotation angle of R in degrees.
-[[nodiscard]] double rotation_deg(const Eigen::Isometry3d& T);
 
 }  // namespace rankslam::geometry::bench

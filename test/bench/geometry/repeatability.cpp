@@ -7,7 +7,7 @@
 
 #include "geometry_bench_support.hpp"
 #include "rankslam/geometry/point_grid.hpp"
-#include "rankslam/slam/camera.hpp"
+#include "rankslam/camera/depth_camera.hpp"
 
 #ifdef RANKSLAM_HAVE_PCL
 #include <pcl/keypoints/iss_3d.h>
@@ -205,7 +205,7 @@ std::string run_repeatability(const RepeatabilityOptions& options,
   bool configured = false;
   const auto configure = [&](const hal::Calibration& calibration) -> std::string {
     if (configured) return {};
-    const slam::DepthCameraModel camera(calibration.rgb, calibration.depth_scale);
+    const camera::DepthCameraModel camera(calibration.rgb, calibration.depth_scale);
     if (std::string error = frontend.configure(camera, options.config); !error.empty()) return error;
     features = frontend.make_features();
     configured = true;

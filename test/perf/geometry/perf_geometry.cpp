@@ -25,7 +25,7 @@
 
 #include "geometry_bench_support.hpp"
 #include "rankslam/geometry/frontend.hpp"
-#include "rankslam/slam/camera.hpp"
+#include "rankslam/camera/depth_camera.hpp"
 
 namespace {
 
@@ -34,7 +34,7 @@ using namespace rankslam::geometry;
 
 struct Data {
   bench::DepthSequence sequence;
-  std::unique_ptr<slam::DepthCameraModel> camera;
+  std::unique_ptr<camera::DepthCameraModel> camera;
   std::string error;
 };
 
@@ -48,7 +48,7 @@ const Data& data() {
     }
     d.error = bench::load_depth_sequence(root, d.sequence);
     if (d.error.empty()) {
-      d.camera = std::make_unique<slam::DepthCameraModel>(d.sequence.calibration.rgb,
+      d.camera = std::make_unique<camera::DepthCameraModel>(d.sequence.calibration.rgb,
                                                           d.sequence.calibration.depth_scale);
     }
     return d;

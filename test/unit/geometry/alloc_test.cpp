@@ -10,7 +10,7 @@
 #include "allocation_counter.hpp"
 
 #include "rankslam/geometry/frontend.hpp"
-#include "rankslam/slam/camera.hpp"
+#include "rankslam/camera/depth_camera.hpp"
 #include "synthetic_scene.hpp"
 
 namespace rankslam::geometry {
@@ -38,7 +38,7 @@ TEST(GeometryAllocations, CounterSeesAllocations) {
 }
 
 TEST(GeometryAllocations, NoneInTheSteadyState) {
-  const slam::DepthCameraModel camera(testing::test_calibration(), 5000.0);
+  const camera::DepthCameraModel camera(testing::test_calibration(), 5000.0);
   std::vector<cv::Mat> frames;
   for (int i = 0; i < 6; ++i) {
     const Eigen::Isometry3d T_world_cam =

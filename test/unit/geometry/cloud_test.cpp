@@ -9,7 +9,7 @@
 #include <nanoflann.hpp>
 
 #include "rankslam/geometry/cloud.hpp"
-#include "rankslam/slam/camera.hpp"
+#include "rankslam/camera/depth_camera.hpp"
 #include "synthetic_scene.hpp"
 
 namespace rankslam::geometry {
@@ -24,7 +24,7 @@ struct DenseCloud {
 };
 using DenseTree = nanoflann::KDTreeSingleIndexAdaptor<nanoflann::L2_Simple_Adaptor<float, DenseCloud>, DenseCloud, 3>;
 
-DenseCloud pass_through_cloud(const cv::Mat& depth, const slam::DepthCameraModel& camera, float max_m) {
+DenseCloud pass_through_cloud(const cv::Mat& depth, const camera::DepthCameraModel& camera, float max_m) {
   DenseCloud cloud;
   for (int v = 0; v < depth.rows; ++v) {
     for (int u = 0; u < depth.cols; ++u) {
@@ -41,7 +41,7 @@ DenseCloud pass_through_cloud(const cv::Mat& depth, const slam::DepthCameraModel
 class CloudTest : public ::testing::Test {
  protected:
   void SetUp() override {
-    camera_ = slam::DepthCameraModel(testing::test_calibration(), 5000.0);
+    camera_ = camera::DepthCameraModel(testing::test_calibration(), 5000.0);
     eye_ = Eigen::Vector3d(2.6, 2.4, 1.7);
     depth_ = testing::render_depth(testing::room_corner(), testing::test_calibration(),
                                    testing::look_at(eye_, Eigen::Vector3d(0.9, 0.9, 0.3)), 1.4e-3);
@@ -49,7 +49,7 @@ class CloudTest : public ::testing::Test {
     cloud_ = preprocessor_.make_cloud();
   }
 
-  slam::DepthCameraModel camera_;
+  camera::DepthCameraModel camera_;
   Eigen::Vector3d eye_;
   cv::Mat depth_;
   GeometryConfig config_;
@@ -134,7 +134,7 @@ TEST_F(CloudTest, BlockMeansAndBoundsMatchAPlainPassOverTheirPixels) {
   hal::CameraCalibration calibration = testing::test_calibration();
   calibration.width = 628;  // 157 blocks: 19 groups of 8 and 5 more
   calibration.cx = 313.5;
-  const slam::DepthCameraModel camera(calibration, 5000.0);
+  const camera::DepthCameraModel camera(calibration, 5000.0);
   cv::Mat depth = testing::render_depth(testing::room_corner(), calibration,
                                         testing::look_at(eye_, Eigen::Vector3d(0.9, 0.9, 0.3)), 1.4e-3);
   for (int v = 0; v < depth.rows; ++v) {
@@ -280,7 +280,7 @@ TEST_F(CloudTest, ConfigureNamesTheProblem) {
   bad.voxel_leaf_factor = -1.0;
   CloudPreprocessor preprocessor;
   EXPECT_NE(preprocessor.configure(camera_, bad, 100).find("voxel_leaf_factor"), std::string::npos);
-  EXPECT_NE(preprocessor.configure(slam::DepthCameraModel(), GeometryConfig{}, 100).find("image size"), std::string::npos);
+  EXPECT_NE(preprocessor.configure(camera::DepthCameraModel(), GeometryConfig{}, 100).find("image size"), std::string::npos);
   EXPECT_NE(preprocessor.configure(camera_, GeometryConfig{}, 1).find("max_sampled_points"), std::string::npos);
 }
 

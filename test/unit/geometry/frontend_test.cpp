@@ -4,7 +4,7 @@
 #include <gtest/gtest.h>
 
 #include "rankslam/geometry/frontend.hpp"
-#include "rankslam/slam/camera.hpp"
+#include "rankslam/camera/depth_camera.hpp"
 #include "synthetic_scene.hpp"
 
 namespace rankslam::geometry {
@@ -17,7 +17,7 @@ double angle_deg(const Eigen::Isometry3d& T) {
 class FrontendTest : public ::testing::Test {
  protected:
   void SetUp() override {
-    camera_ = slam::DepthCameraModel(testing::test_calibration(), 5000.0);
+    camera_ = camera::DepthCameraModel(testing::test_calibration(), 5000.0);
     T_world_a_ = testing::look_at(Eigen::Vector3d(2.6, 2.4, 1.7), Eigen::Vector3d(0.9, 0.9, 0.3));
     // The second view: 4 cm to the side and 3° about a tilted axis, as between two frames.
     T_world_b_ = T_world_a_ * Eigen::Translation3d(0.04, -0.01, 0.015) *
@@ -29,7 +29,7 @@ class FrontendTest : public ::testing::Test {
     b_ = frontend_.make_features();
   }
 
-  slam::DepthCameraModel camera_;
+  camera::DepthCameraModel camera_;
   Eigen::Isometry3d T_world_a_;
   Eigen::Isometry3d T_world_b_;
   cv::Mat depth_a_;

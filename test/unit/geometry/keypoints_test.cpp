@@ -8,7 +8,7 @@
 
 #include "rankslam/geometry/cloud.hpp"
 #include "rankslam/geometry/keypoints.hpp"
-#include "rankslam/slam/camera.hpp"
+#include "rankslam/camera/depth_camera.hpp"
 #include "synthetic_scene.hpp"
 
 namespace rankslam::geometry {
@@ -44,7 +44,7 @@ double distance_to_structure(const Eigen::Vector3d& p) {
 class KeypointTest : public ::testing::Test {
  protected:
   void SetUp() override {
-    camera_ = slam::DepthCameraModel(testing::test_calibration(), 5000.0);
+    camera_ = camera::DepthCameraModel(testing::test_calibration(), 5000.0);
     T_world_cam_ = testing::look_at(Eigen::Vector3d(2.6, 2.4, 1.7), Eigen::Vector3d(0.9, 0.9, 0.3));
     depth_ = testing::render_depth(testing::room_corner(), testing::test_calibration(), T_world_cam_, 1.0e-3);
     ASSERT_EQ(preprocessor_.configure(camera_, config_, 16384), "");
@@ -66,7 +66,7 @@ class KeypointTest : public ::testing::Test {
     EXPECT_LE(far, count / 50) << far << " of " << count << " keypoints away from every crease";
   }
 
-  slam::DepthCameraModel camera_;
+  camera::DepthCameraModel camera_;
   Eigen::Isometry3d T_world_cam_;
   cv::Mat depth_;
   GeometryConfig config_;

@@ -16,7 +16,7 @@
 #include <nanoflann.hpp>
 
 #include "rankslam/geometry/cloud.hpp"
-#include "rankslam/slam/camera.hpp"
+#include "rankslam/camera/depth_camera.hpp"
 #include "test_data.hpp"
 
 namespace rankslam::geometry {
@@ -33,7 +33,7 @@ using Tree = nanoflann::KDTreeSingleIndexAdaptor<nanoflann::L2_Simple_Adaptor<fl
 
 class DensePca {
  public:
-  DensePca(const cv::Mat& depth, const slam::DepthCameraModel& camera, float max_m) {
+  DensePca(const cv::Mat& depth, const camera::DepthCameraModel& camera, float max_m) {
     for (int v = 0; v < depth.rows; ++v) {
       for (int u = 0; u < depth.cols; ++u) {
         const auto raw = depth.at<std::uint16_t>(v, u);
@@ -90,7 +90,7 @@ TEST(Normals, AsCloseToTheNoiseFreeGeometryAsDensePca) {
     ASSERT_EQ(error, "");
     ASSERT_EQ(noisy.size(), 1U);
     ASSERT_EQ(clean.size(), 1U);
-    const slam::DepthCameraModel camera(calibration.rgb, calibration.depth_scale);
+    const camera::DepthCameraModel camera(calibration.rgb, calibration.depth_scale);
     GeometryConfig config;
     CloudPreprocessor preprocessor;
     ASSERT_EQ(preprocessor.configure(camera, config, 16384), "");
@@ -119,7 +119,7 @@ TEST(Normals, AgreeWithDensePcaOnRealFrames) {
   hal::Calibration calibration;
   const auto frames = testing::tum_depth_frames("fr1_desk_9", 2, calibration);
   if (frames.empty()) GTEST_SKIP() << "shared data (RANKSLAM_SHARED_DATA/tum/fr1_desk_9) is absent";
-  const slam::DepthCameraModel camera(calibration.rgb, calibration.depth_scale);
+  const camera::DepthCameraModel camera(calibration.rgb, calibration.depth_scale);
   GeometryConfig config;
   CloudPreprocessor preprocessor;
   ASSERT_EQ(preprocessor.configure(camera, config, 16384), "");
@@ -152,7 +152,7 @@ TEST(Normals, PortableAndAvx2WindowSumsAgree) {
   const auto frames = testing::simulated_depth_frames("office", 30, 1, true, calibration, error);
   ASSERT_EQ(error, "");
   ASSERT_EQ(frames.size(), 1U);
-  const slam::DepthCameraModel camera(calibration.rgb, calibration.depth_scale);
+  const camera::DepthCameraModel camera(calibration.rgb, calibration.depth_scale);
   GeometryConfig config;
   CloudPreprocessor preprocessor;
   ASSERT_EQ(preprocessor.configure(camera, config, 16384), "");

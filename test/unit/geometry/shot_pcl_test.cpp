@@ -12,7 +12,7 @@
 #include <pcl/search/kdtree.h>
 
 #include "rankslam/geometry/frontend.hpp"
-#include "rankslam/slam/camera.hpp"
+#include "rankslam/camera/depth_camera.hpp"
 #include "synthetic_scene.hpp"
 #include "test_data.hpp"
 
@@ -20,7 +20,7 @@ namespace rankslam::geometry {
 namespace {
 
 // Cosine similarity of each of our descriptors with PCL's for the same keypoint.
-std::vector<double> compare_with_pcl(const slam::DepthCameraModel& camera, const cv::Mat& depth,
+std::vector<double> compare_with_pcl(const camera::DepthCameraModel& camera, const cv::Mat& depth,
                                      KeypointMethod method) {
   GeometryConfig config;
   GeometricFrontend frontend;
@@ -80,7 +80,7 @@ void expect_pcl_agreement(const std::vector<double>& similarity) {
 }
 
 TEST(ShotVsPcl, SyntheticRoom) {
-  const slam::DepthCameraModel camera(testing::test_calibration(), 5000.0);
+  const camera::DepthCameraModel camera(testing::test_calibration(), 5000.0);
   const cv::Mat depth = testing::render_depth(
       testing::room_corner(), testing::test_calibration(),
       testing::look_at(Eigen::Vector3d(2.6, 2.4, 1.7), Eigen::Vector3d(0.9, 0.9, 0.3)), 1.4e-3);
@@ -93,7 +93,7 @@ TEST(ShotVsPcl, RealTumFrames) {
   hal::Calibration calibration;
   const std::vector<cv::Mat> frames = testing::tum_depth_frames("fr1_desk_9", 3, calibration);
   if (frames.empty()) GTEST_SKIP() << "shared data (RANKSLAM_SHARED_DATA/tum/fr1_desk_9) is absent";
-  const slam::DepthCameraModel camera(calibration.rgb, calibration.depth_scale);
+  const camera::DepthCameraModel camera(calibration.rgb, calibration.depth_scale);
   for (const cv::Mat& depth : frames) {
     expect_pcl_agreement(compare_with_pcl(camera, depth, KeypointMethod::kIs3d));
   }

@@ -7,7 +7,7 @@
 #include "rankslam/geometry/cloud.hpp"
 #include "rankslam/geometry/keypoints.hpp"
 #include "rankslam/geometry/shot.hpp"
-#include "rankslam/slam/camera.hpp"
+#include "rankslam/camera/depth_camera.hpp"
 #include "synthetic_scene.hpp"
 
 namespace rankslam::geometry {
@@ -16,7 +16,7 @@ namespace {
 class ShotTest : public ::testing::Test {
  protected:
   void SetUp() override {
-    const slam::DepthCameraModel camera(testing::test_calibration(), 5000.0);
+    const camera::DepthCameraModel camera(testing::test_calibration(), 5000.0);
     const cv::Mat depth = testing::render_depth(
         testing::room_corner(), testing::test_calibration(),
         testing::look_at(Eigen::Vector3d(2.6, 2.4, 1.7), Eigen::Vector3d(0.9, 0.9, 0.3)), 1.0e-3);

@@ -1,4 +1,4 @@
-#include "rankslam/slam/camera.hpp"
+#include "rankslam/camera/depth_camera.hpp"
 
 #include <gtest/gtest.h>
 
@@ -20,7 +20,7 @@ hal::CameraCalibration fr1() {
 TEST(DepthCameraModel, PinholeWithoutDistortionIsTheTextbookFormula) {
   hal::CameraCalibration camera = fr1();
   camera.distortion = {};
-  const DepthCameraModel model(camera, 5000.0);
+  const camera::DepthCameraModel model(camera, 5000.0);
   const Eigen::Vector3f p = model.back_project(100, 400, 2.0F);
   EXPECT_NEAR(p.x(), (100 - 318.6) * 2.0 / 517.3, 1e-5);
   EXPECT_NEAR(p.y(), (400 - 255.3) * 2.0 / 516.5, 1e-5);
@@ -30,7 +30,7 @@ TEST(DepthCameraModel, PinholeWithoutDistortionIsTheTextbookFormula) {
 
 TEST(DepthCameraModel, RaysReprojectOntoTheirDistortedPixels) {
   const hal::CameraCalibration camera = fr1();
-  const DepthCameraModel model(camera, 5000.0);
+  const camera::DepthCameraModel model(camera, 5000.0);
   const cv::Matx33d K(camera.fx, 0, camera.cx, 0, camera.fy, camera.cy, 0, 0, 1);
   const cv::Vec<double, 5> d(camera.distortion[0], camera.distortion[1], camera.distortion[2], camera.distortion[3],
                              camera.distortion[4]);

@@ -74,7 +74,7 @@ Eigen::Isometry3d small_motion() {
 class IcpModes : public ::testing::TestWithParam<IcpMode> {};
 
 TEST_P(IcpModes, RecoversAKnownMotionFromDepthAlone) {
-  const DepthCameraModel camera(pinhole(), 5000.0);
+  const camera::DepthCameraModel camera(pinhole(), 5000.0);
   IcpSettings settings;
   settings.mode = GetParam();
   settings.max_iterations = 50;
@@ -112,7 +112,7 @@ INSTANTIATE_TEST_SUITE_P(Modes, IcpModes, ::testing::Values(IcpMode::kPointToPoi
                          [](const auto& param_info) { return std::string(to_string(param_info.param)); });
 
 TEST(IcpRefiner, VoxelCloudDropsInvalidAndFarDepth) {
-  const DepthCameraModel camera(pinhole(), 5000.0);
+  const camera::DepthCameraModel camera(pinhole(), 5000.0);
   IcpSettings settings;
   settings.mode = IcpMode::kPointToPoint;
   IcpRefiner icp(settings, camera);

@@ -1,6 +1,6 @@
 #include "rankslam/eval/trajectory.hpp"
 #include "rankslam/replay/recording.hpp"
-#include "rankslam/slam/camera.hpp"
+#include "rankslam/camera/depth_camera.hpp"
 #include "rankslam/slam/orb_extractor.hpp"
 #include "rankslam/slam/orb_frontend.hpp"
 
@@ -313,7 +313,7 @@ struct MatchQuality {
 /// Mutual Hamming matches from frame a to frame b; a match is an inlier when the keypoint of a,
 /// lifted with its depth and moved by the ground-truth motion, lies within 4 px of b's keypoint
 /// (compared as undistorted rays, scaled by fx).
-MatchQuality match_quality(const TumFrames& frames, const rankslam::slam::DepthCameraModel& camera, int a, int b,
+MatchQuality match_quality(const TumFrames& frames, const rankslam::camera::DepthCameraModel& camera, int a, int b,
                            const std::vector<cv::KeyPoint>& keypoints_a, const cv::Mat& descriptors_a,
                            const std::vector<cv::KeyPoint>& keypoints_b, const cv::Mat& descriptors_b) {
   rankslam::slam::MutualHammingMatcher matcher;
@@ -344,7 +344,7 @@ MatchQuality match_quality(const TumFrames& frames, const rankslam::slam::DepthC
 TEST(OrbExtractor, MatchesRealFramesAsWellAsOpenCvOrb) {
   const TumFrames& frames = fr1_rpy_head();
   if (!frames.skip_reason.empty()) GTEST_SKIP() << frames.skip_reason;
-  const rankslam::slam::DepthCameraModel camera(frames.calibration.rgb, frames.calibration.depth_scale);
+  const rankslam::camera::DepthCameraModel camera(frames.calibration.rgb, frames.calibration.depth_scale);
   OrbExtractorSettings settings;  // the SLAM defaults: 1000 features, 1.2, 8 levels, FAST 20
   OrbExtractor extractor_a(settings);
   OrbExtractor extractor_b(settings);
@@ -401,7 +401,7 @@ TEST(OrbExtractor, ExtractsRealFramesWithoutAllocating) {
 
   // The whole photometric front-end: extraction, depth look-up, descriptor copies.
   rankslam::slam::SlamConfig config;
-  const rankslam::slam::DepthCameraModel camera(frames.calibration.rgb, frames.calibration.depth_scale);
+  const rankslam::camera::DepthCameraModel camera(frames.calibration.rgb, frames.calibration.depth_scale);
   rankslam::slam::OrbFrontend frontend(config, camera);
   rankslam::slam::PhotometricFeatures photometric;
   photometric.reserve(static_cast<std::size_t>(config.orb_features) * 2);

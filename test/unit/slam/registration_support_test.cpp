@@ -118,7 +118,7 @@ TEST(RegistrationSupport, AdjointMapsASmallMotionIntoTheFrameAPoseMapsFrom) {
   Eigen::Isometry3d small = turn_about(xi.head<3>(), xi.head<3>().norm() * 180.0 / M_PI);
   small.translation() = xi.tail<3>();
   const Eigen::Matrix<double, 6, 1> mapped = icp_prior_deviation(T * small * T.inverse(), Eigen::Isometry3d::Identity());
-  EXPECT_LT((mapped - adjoint(T) * xi).norm(), 1e-7) << mapped.transpose();
+  EXPECT_LT((mapped - lie::adjoint(T) * xi).norm(), 1e-7) << mapped.transpose();
 }
 
 // Against a target 20 cm behind the prior's pose (a key-frame reference), a turn about the

@@ -32,57 +32,8 @@ Eigen::Matrix3d frame_covariance() { return Eigen::Vector3d(1e-6, 1e-6, 2e-5).as
 
 // The wall sequence moves the camera along its x axis, which is the base's −y: a base that
 // slides sideways (the prior does not need a drivable motion).
-MotionPrior sideways_prior(double camera_right_m, double yaw_rad = 0.0) {
-  return camera_motion_prior(0.0, -camera_right_m, yaw_rad, frame_covariance(), camera_on_base());
-}
-
-Eigen::Matrix<double, 6, 1> log_motion(const Eigen::Isometry3d& motion) {
-  const Eigen::AngleAxisd rotation(motion.rotation());
-  Eigen::Matrix<double, 6, 1> xi;
-  xi.head<3>() = rotation.angle() * rotation.axis();
-  xi.tail<3>() = motion.translation();
-  return xi;
-}
-
-TEST(CameraMotionPrior, IsTheBaseMotionSeenFromTheCameraWithItsCovariancePropagated) {
-  Eigen::Isometry3d T_base_cam = Eigen::Isometry3d::Identity();
-  T_base_cam.linear() = (Eigen::AngleAxisd(-1.4, Eigen::Vector3d::UnitZ()) * Eigen::AngleAxisd(-1.7, Eigen::Vector3d::UnitX()))
-                            .toRotationMatrix();
-  T_base_cam.translation() = Eigen::Vector3d(0.15, -0.05, 0.45);
-  const double x = 0.02;
-  const double y = 0.004;
-  const double yaw = 0.03;
-  Eigen::Matrix3d covariance;
-  covariance << 4e-6, 1e-6, 2e-6, 1e-6, 3e-6, -1e-6, 2e-6, -1e-6, 9e-6;
-  const MotionPrior prior = camera_motion_prior(x, y, yaw, covariance, T_base_cam);
-
-  const auto base_motion = [](double bx, double by, double byaw) {
-    Eigen::Isometry3d D = Eigen::Isometry3d::Identity();
-    D.linear() = Eigen::AngleAxisd(byaw, Eigen::Vector3d::UnitZ()).toRotationMatrix();
-    D.translation() = Eigen::Vector3d(bx, by, 0.0);
-    return D;
-  };
-  const Eigen::Isometry3d expected = T_base_cam.inverse() * base_motion(x, y, yaw) * T_base_cam;
-  EXPECT_LT((prior.T_previous_current.matrix() - expected.matrix()).cwiseAbs().maxCoeff(), 1e-12);
-
-  // Jacobian of ξ (camera motion = exp(ξ)·mean) with respect to (x, y, yaw), by central
-  // differences, against the propagated covariance.
-  Eigen::Matrix<double, 6, 3> jacobian;
-  const double h = 1e-6;
-  for (int i = 0; i < 3; ++i) {
-    Eigen::Vector3d plus(x, y, yaw);
-    Eigen::Vector3d minus(x, y, yaw);
-    plus[i] += h;
-    minus[i] -= h;
-    const Eigen::Isometry3d C_plus = T_base_cam.inverse() * base_motion(plus[0], plus[1], plus[2]) * T_base_cam;
-    const Eigen::Isometry3d C_minus = T_base_cam.inverse() * base_motion(minus[0], minus[1], minus[2]) * T_base_cam;
-    jacobian.col(i) = (log_motion(C_plus * expected.inverse()) - log_motion(C_minus * expected.inverse())) / (2 * h);
-  }
-  const Eigen::Matrix<double, 6, 6> numeric = jacobian * covariance * jacobian.transpose();
-  EXPECT_LT((prior.covariance - numeric).cwiseAbs().maxCoeff(), 1e-10) << prior.covariance << "\n\n" << numeric;
-  // A planar motion leaves the camera's motion certain across the floor's normal.
-  const Eigen::Vector3d floor_normal_cam = T_base_cam.rotation().transpose() * Eigen::Vector3d::UnitZ();
-  EXPECT_NEAR(floor_normal_cam.dot(prior.covariance.bottomRightCorner<3, 3>() * floor_normal_cam), 0.0, 1e-15);
+nav::MotionPrior sideways_prior(double camera_right_m, double yaw_rad = 0.0) {
+  return nav::camera_motion_prior(0.0, -camera_right_m, yaw_rad, frame_covariance(), camera_on_base());
 }
 
 class SlamLoopWheels : public ::testing::TestWithParam<Mode> {
@@ -95,8 +46,8 @@ class SlamLoopWheels : public ::testing::TestWithParam<Mode> {
   // Noise-free synthetic images register far better than a real scene.
   SlamConfig synthetic_vision_config() const {
     SlamConfig slam_config = config();
-    slam_config.wheel_vision_sigma_m = 0.005;
-    slam_config.wheel_vision_sigma_deg = 0.3;
+    slam_config.wheels.vision_sigma_m = 0.005;
+    slam_config.wheels.vision_sigma_deg = 0.3;
     return slam_config;
   }
   WallSequence wall_;
@@ -106,7 +57,7 @@ class SlamLoopWheels : public ::testing::TestWithParam<Mode> {
 TEST_P(SlamLoopWheels, AgreeingWheelsPredictAndVisionKeepsThePose) {
   SlamLoop loop(config(), pinhole_on_base());
   FrameResult result;
-  const MotionPrior prior = sideways_prior(speed_m_);
+  const nav::MotionPrior prior = sideways_prior(speed_m_);
   for (int i = 0; i <= 20; ++i) {
     result = loop.process(wall_.frame(4 * i, static_cast<std::uint32_t>(i)), &prior);
     EXPECT_TRUE(result.wheels.prior_given);
@@ -124,7 +75,7 @@ TEST_P(SlamLoopWheels, BlankFramesFollowTheWheelsForAsLongAsTheyLast) {
   SlamConfig slam_config = config();
   slam_config.max_extrapolated_frames = 5;  // without wheels the pose would hold after 5 frames
   SlamLoop loop(slam_config, pinhole_on_base());
-  const MotionPrior prior = sideways_prior(speed_m_);
+  const nav::MotionPrior prior = sideways_prior(speed_m_);
   FrameResult result;
   for (int i = 0; i < 5; ++i) result = loop.process(wall_.frame(4 * i, static_cast<std::uint32_t>(i)), &prior);
   ASSERT_EQ(result.status, FrameStatus::kTracking);
@@ -150,16 +101,16 @@ TEST_P(SlamLoopWheels, BlankFramesFollowTheWheelsForAsLongAsTheyLast) {
 TEST_P(SlamLoopWheels, ASlippingWheelGivesThePoseToVisionAndCountsOneEventPerSlip) {
   SlamConfig slam_config = synthetic_vision_config();
   SlamLoop loop(slam_config, pinhole_on_base());
-  const MotionPrior good = sideways_prior(speed_m_);
+  const nav::MotionPrior good = sideways_prior(speed_m_);
   // One wheel over-counting: 0.6 deg of yaw per frame that the camera never turned.
-  const MotionPrior slipping = sideways_prior(speed_m_, 0.6 * M_PI / 180.0);
+  const nav::MotionPrior slipping = sideways_prior(speed_m_, 0.6 * M_PI / 180.0);
   FrameResult result;
   int frame = 0;
   struct Counts {
     int slip_shaped = 0;
     int vision_trusted = 0;
   };
-  const auto drive = [&](const MotionPrior& prior, int frames) {
+  const auto drive = [&](const nav::MotionPrior& prior, int frames) {
     Counts counts;
     for (int k = 0; k < frames; ++k, ++frame) {
       result = loop.process(wall_.frame(4 * frame, static_cast<std::uint32_t>(frame)), &prior);
@@ -171,8 +122,8 @@ TEST_P(SlamLoopWheels, ASlippingWheelGivesThePoseToVisionAndCountsOneEventPerSli
         EXPECT_EQ(result.status, FrameStatus::kTracking) << "frame " << frame;
       }
       // Across the drive direction, in height and in tilt vision and the slipping wheels agree.
-      EXPECT_LT(std::abs(result.wheels.lateral_residual_m), slam_config.wheel_vision_sigma_m) << "frame " << frame;
-      EXPECT_LT(result.wheels.tilt_residual_deg, slam_config.wheel_vision_sigma_deg) << "frame " << frame;
+      EXPECT_LT(std::abs(result.wheels.lateral_residual_m), slam_config.wheels.vision_sigma_m) << "frame " << frame;
+      EXPECT_LT(result.wheels.tilt_residual_deg, slam_config.wheels.vision_sigma_deg) << "frame " << frame;
     }
     return counts;
   };
@@ -203,8 +154,8 @@ TEST_P(SlamLoopWheels, ASlippingWheelGivesThePoseToVisionAndCountsOneEventPerSli
 TEST_P(SlamLoopWheels, AHeadingResidualTurningOneWayIsASlipWhateverTheTilt) {
   SlamConfig slam_config = synthetic_vision_config();
   SlamLoop loop(slam_config, pinhole_on_base());
-  const MotionPrior good = sideways_prior(speed_m_);
-  MotionPrior slipping_and_tilting = sideways_prior(speed_m_, 0.6 * M_PI / 180.0);
+  const nav::MotionPrior good = sideways_prior(speed_m_);
+  nav::MotionPrior slipping_and_tilting = sideways_prior(speed_m_, 0.6 * M_PI / 180.0);
   Eigen::Isometry3d roll = Eigen::Isometry3d::Identity();
   roll.linear() = Eigen::AngleAxisd(0.5 * M_PI / 180.0, Eigen::Vector3d::UnitX()).toRotationMatrix();
   const Eigen::Isometry3d T_base_cam = camera_on_base();
@@ -222,10 +173,10 @@ TEST_P(SlamLoopWheels, AHeadingResidualTurningOneWayIsASlipWhateverTheTilt) {
   }
   // The heading residual grows 0.6 deg a frame: 0.8 deg or more from the second frame, the
   // eighth such frame is the ninth.
-  EXPECT_EQ(event_at, 1 + slam_config.wheel_slip_heading_frames);
+  EXPECT_EQ(event_at, 1 + slam_config.wheels.slip_heading_frames);
   EXPECT_EQ(loop.wheel_slip_events(), 1);
   EXPECT_TRUE(result.wheels.vision_trusted);
-  EXPECT_LT(std::abs(result.wheels.lateral_residual_m), 2.0 * slam_config.wheel_vision_sigma_m);
+  EXPECT_LT(std::abs(result.wheels.lateral_residual_m), 2.0 * slam_config.wheels.vision_sigma_m);
 }
 
 // Strong vision that disagrees with the wheels as the base cannot move (across its drive
@@ -233,8 +184,8 @@ TEST_P(SlamLoopWheels, AHeadingResidualTurningOneWayIsASlipWhateverTheTilt) {
 // (along it, a robot pushed with its wheels locked) goes to vision after wheel_override_min_frames.
 TEST_P(SlamLoopWheels, StrongVisionWinsOnlyADisagreementTheBaseCanMake) {
   SlamConfig slam_config = synthetic_vision_config();
-  slam_config.wheel_strong_inliers = slam_config.min_inliers;  // every accepted registration is strong
-  slam_config.wheel_override_min_frames = 3;
+  slam_config.wheels.strong_inliers = slam_config.min_inliers;  // every accepted registration is strong
+  slam_config.wheels.override_min_frames = 3;
   // The wall sequence moves the camera along its x axis. Looking forward, that is across the
   // base's drive direction; looking to the left side (camera x = base x, y = −base z, z = base y),
   // along it.
@@ -254,12 +205,12 @@ TEST_P(SlamLoopWheels, StrongVisionWinsOnlyADisagreementTheBaseCanMake) {
     calibration.rgb.T_base_cam = c.T_base_cam;
     SlamLoop loop(slam_config, calibration);
     const auto prior_for = [&](double camera_x_m) {
-      return camera_motion_prior(c.base_x_per_camera_x * camera_x_m, c.base_y_per_camera_x * camera_x_m, 0.0,
+      return nav::camera_motion_prior(c.base_x_per_camera_x * camera_x_m, c.base_y_per_camera_x * camera_x_m, 0.0,
                                  frame_covariance(), c.T_base_cam);
     };
-    const MotionPrior good = prior_for(speed_m_);
+    const nav::MotionPrior good = prior_for(speed_m_);
     // 3 cm a frame the camera did not move (6 sigma).
-    const MotionPrior wrong = prior_for(speed_m_ + 0.03);
+    const nav::MotionPrior wrong = prior_for(speed_m_ + 0.03);
     int frame = 0;
     FrameResult result;
     for (; frame < 5; ++frame) result = loop.process(wall_.frame(4 * frame, static_cast<std::uint32_t>(frame)), &good);
@@ -271,7 +222,7 @@ TEST_P(SlamLoopWheels, StrongVisionWinsOnlyADisagreementTheBaseCanMake) {
       ASSERT_TRUE(result.wheels.compared) << "frame " << frame << ": " << result.failure_reason;
       EXPECT_TRUE(result.wheels.disagree) << "frame " << frame;
       EXPECT_FALSE(result.wheels.slip_shaped) << "frame " << frame;
-      const bool vision_wins = c.base_can_make_it && k >= slam_config.wheel_override_min_frames;
+      const bool vision_wins = c.base_can_make_it && k >= slam_config.wheels.override_min_frames;
       EXPECT_EQ(result.wheels.vision_trusted, vision_wins)
           << "frame " << frame << ": residual forward " << result.wheels.forward_residual_m << " m, across "
           << result.wheels.lateral_residual_m << " m, height " << result.wheels.height_residual_m << " m, yaw "
@@ -292,23 +243,23 @@ TEST_P(SlamLoopWheels, StrongVisionWinsOnlyADisagreementTheBaseCanMake) {
 
 TEST_P(SlamLoopWheels, WeakVisionThatDisagreesGivesWayToTheWheels) {
   SlamConfig slam_config = config();
-  slam_config.wheel_strong_inliers = 10000;  // no registration is strong enough to overrule them
+  slam_config.wheels.strong_inliers = 10000;  // no registration is strong enough to overrule them
   // A disagreement the frame's own test sees, yet within the loop's deviation gate (10 cm).
-  slam_config.wheel_vision_sigma_m = 0.01;
+  slam_config.wheels.vision_sigma_m = 0.01;
   SlamLoop loop(slam_config, pinhole_on_base());
-  const MotionPrior good = sideways_prior(speed_m_);
+  const nav::MotionPrior good = sideways_prior(speed_m_);
   FrameResult result;
   for (int i = 0; i < 5; ++i) result = loop.process(wall_.frame(4 * i, static_cast<std::uint32_t>(i)), &good);
   ASSERT_EQ(result.status, FrameStatus::kTracking);
   const Eigen::Isometry3d T_world_previous = result.T_world_cam;
   // The wheels say 8 cm more than the view shows (8 sigma of the vision noise).
-  const MotionPrior far = sideways_prior(speed_m_ + 0.08);
+  const nav::MotionPrior far = sideways_prior(speed_m_ + 0.08);
   result = loop.process(wall_.frame(20, 5), &far);
   EXPECT_EQ(result.status, FrameStatus::kWheels) << result.failure_reason;
   EXPECT_TRUE(result.wheels.compared);
   EXPECT_TRUE(result.wheels.disagree);
   EXPECT_TRUE(result.wheels.wheels_trusted);
-  EXPECT_GT(result.wheels.frame_distance_sq, slam_config.wheel_gate_chi2);
+  EXPECT_GT(result.wheels.frame_distance_sq, slam_config.wheels.gate_chi2);
   EXPECT_EQ(result.failure_reason, "registration disagrees with the wheels");
   const Eigen::Isometry3d expected = T_world_previous * far.T_previous_current;
   EXPECT_LT((result.T_world_cam.translation() - expected.translation()).norm(), 1e-6);
@@ -323,7 +274,7 @@ TEST(SlamLoopWheelsGeometric, FramesWithoutGeometryFollowTheWheels) {
   config.mode = Mode::kGeometric;
   SlamLoop loop(config, pinhole_on_base());
   WallSequence wall;
-  const MotionPrior prior = sideways_prior(WallSequence::metres(4));
+  const nav::MotionPrior prior = sideways_prior(WallSequence::metres(4));
   FrameResult result = loop.process(wall.frame(0, 0), &prior);
   ASSERT_EQ(result.status, FrameStatus::kFirstFrame);
   // A flat wall gives the depth-only front-end nothing to register: every frame is the wheels'.

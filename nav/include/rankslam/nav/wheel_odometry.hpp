@@ -1,5 +1,6 @@
 #pragma once
 
+#include "rankslam/core/units.hpp"
 #include "rankslam/hal/calibration.hpp"
 #include "rankslam/hal/messages.hpp"
 #include "rankslam/nav/wheel_frame.hpp"
@@ -22,8 +23,6 @@ struct Pose2d {
   double yaw_rad = 0.0;  ///< [-π, π)
 };
 
-/// `angle_rad` wrapped into [-π, π).
-[[nodiscard]] double wrap_angle(double angle_rad);
 /// T_a_c = T_a_b ⊕ T_b_c.
 [[nodiscard]] Pose2d compose(const Pose2d& T_a_b, const Pose2d& T_b_c);
 /// T_b_a from T_a_b.

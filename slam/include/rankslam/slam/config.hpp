@@ -1,6 +1,7 @@
 #pragma once
 
 #include "rankslam/geometry/config.hpp"
+#include "rankslam/nav/wheel_arbiter.hpp"
 
 #include <cstdint>
 #include <optional>
@@ -11,7 +12,7 @@ namespace rankslam::slam {
 /// Which registration the SLAM loop runs.
 enum class Mode : std::uint8_t {
   kBaseline,     ///< ORB + fixed-threshold RANSAC: the comparator the thesis measures MSSE against.
-  kPhotometric,  ///< ORB + MSSE (ALGORITHMS.md §2).
+  kPhotometric,  ///< ORB + MSSE (docs/methods.md §2).
   kGeometric,    ///< IS3D + SHOT + MSSE, depth only (§3–4).
   kFused,        ///< Weighted photometric + geometric MSSE (§5).
 };
@@ -26,7 +27,7 @@ enum class Mode : std::uint8_t {
   return "unknown";
 }
 
-/// Optional dense refinement after the feature registration (ALGORITHMS.md §2).
+/// Optional dense refinement after the feature registration (docs/methods.md §2).
 enum class IcpMode : std::uint8_t {
   kOff,
   kPointToPoint,  ///< Closest points, closed-form rigid fit per iteration (Besl & McKay 1992).
@@ -125,7 +126,7 @@ struct SlamConfig {
   double map_voxel_m = 0.02;
   int map_max_points = 2'000'000;
   int map_points_per_keyframe = 5000;
-  // Dark scenes (ALGORITHMS.md §2). Lit indoor scenes read a mean grey level of about 100-160
+  // Dark scenes (docs/methods.md §2). Lit indoor scenes read a mean grey level of about 100-160
   // (fr1_rpy_head 109-161, fr1_desk 141-146, simulated office 98-124, poster wall 126-140); the
   // simulated dark office reads 9-10, images of sensor noise. 30 sits well clear of both: a dim
   // but lit room stays on colour, a room with the lights off goes to IR. The IR image gets its
@@ -142,42 +143,9 @@ struct SlamConfig {
   int icp_max_source_points = 4000;
   double icp_max_correction_m = 0.02;
   double icp_max_correction_deg = 1.0;
-  // Wheel prior (SlamLoop::process with a MotionPrior). The registered motion is compared with
-  // the wheels' under the wheel covariance plus this vision noise, frame by frame and summed
-  // over a window of frames (slip adds up there while noise grows with its square root); the
-  // gate is the chi-square 99.9 % quantile of 6 degrees of freedom. The vision noise covers the
-  // 90th percentile of photometric registration's frame-to-frame error on the simulated corridor
-  // loop (median 7.6 mm / 0.27 deg, 90th percentile 17 mm / 0.57 deg). With the medians' scale,
-  // 1 cm / 0.5 deg, fused registration there disagreed with slip-free wheels on 432 of 2871
-  // frames and declared 36 wheel slips (for 1 real one); with 2 cm / 1 deg, 113 and 10, the real
-  // slip still among them, and ATE 4.4 → 3.1 cm.
-  double wheel_vision_sigma_m = 0.02;
-  double wheel_vision_sigma_deg = 1.0;
-  double wheel_gate_chi2 = 22.46;
-  int wheel_gate_window_frames = 8;
-  int wheel_strong_inliers = 40;
-  // Which source a disagreement is resolved for. One wheel slipping (spinning on a smooth floor)
-  // leaves a residual a planar base can make: about the vertical (and along the drive direction,
-  // which the corridor's registrations measure too poorly to test), with nothing across it, in
-  // height or in tilt beyond the vision noise. A residual of that shape from
-  // wheel_slip_yaw_deg on, for wheel_slip_min_frames in a row, is a slip: vision keeps the pose.
-  // Since the pose follows the wheels until then, the residual grows frame by frame (0.2-0.7 deg
-  // per frame on the simulated corridor loop's slips) and the registrations against a key-frame
-  // see all of it. Any other disagreement is a registration error (the corridor's: sliding along
-  // it, or tilting by 1-2 deg with 2-6 cm across or up), and the wheels keep the pose until
-  // strong vision has disagreed for wheel_override_min_frames in a row (the robot pushed or
-  // carried). Where vision errs in height and tilt while a wheel slips, the heading residual
-  // still turns one way frame after frame: wheel_slip_heading_frames in a row of that, with at
-  // most twice the vision noise across, make a slip too. On the three simulated corridor loops
-  // (seeds 1-3, fused and photometric), every slip-shaped run of 3 frames with 0.8 deg, and
-  // every such run of 8 turning one way, lay in one of the 8 slips (the fused registration
-  // errors' heading residuals change sign within 5 frames; photometric ones turned one way for
-  // longer, with 5-9 cm across); the longest run of other strong disagreements was 8 frames.
-  double wheel_slip_yaw_deg = 0.8;
-  int wheel_slip_min_frames = 3;
-  int wheel_slip_heading_frames = 8;
-  int wheel_override_min_frames = 15;
-  // Fused mode (ALGORITHMS.md §5). Geometric keypoints are voxel centroids; their position noise
+  /// The wheel/vision arbiter (SlamLoop::process with a MotionPrior).
+  nav::WheelArbiterConfig wheels;
+  // Fused mode (docs/methods.md §6). Geometric keypoints are voxel centroids; their position noise
   // in the combined MSSE gets this multiple of the voxel leaf per frame on top of the depth noise.
   // Without it a geometric match counted as 2-4x more precise than an ORB match and pulled the
   // estimate. fr1_rpy_head fused ATE, mean over seeds 1-5 (with the keypoints' rolling-shutter
@@ -238,7 +206,7 @@ struct SlamConfig {
   // An ICP-refined registration whose feature inliers fall below min_inliers is accepted on
   // this many point-to-plane inliers (a lone wall at 1 m gives 1 000-4 000).
   int min_icp_inliers = 300;
-  // Back-end (ALGORITHMS.md §3 "Back-end", §5): key-frame store, loop closure, pose graph.
+  // Back-end (docs/methods.md §8, §10–§11): key-frame store, loop closure, pose graph.
   // Stored key-frames (features, map points, graph node, sampled cloud); when full, one far from
   // the camera with the fewest loop closures is retired (KeyframeStore::retirement_candidate).
   // About 1 MB each.
@@ -270,9 +238,9 @@ struct SlamConfig {
   // Candidates registered per frame, from the key-frame's own frame on (0: all of them in the
   // key-frame's frame). Each is a full fused registration: spread over the next frames they add
   // one registration's time to a frame instead of loop_max_candidates', which lowers the longest
-  // frames and raises the median (more frames carry one; see README, replay).
+  // frames and raises the median (more frames carry one; docs/results.md §2.2).
   int loop_candidates_per_frame = 0;
-  // Adaptive threshold ε on k_P + k_G (ALGORITHMS.md §5): initial value until two closures exist
+  // Adaptive threshold ε on k_P + k_G (docs/methods.md §10): initial value until two closures exist
   // (lean low: the thesis saw 68-207), and T_ε.
   double loop_initial_threshold = 60.0;
   double loop_threshold_deviations = 1.0;
@@ -328,7 +296,7 @@ struct SlamConfig {
   double graph_planar_sigma_deg = 0.2;
   int seed = 1;
 
-  /// The depth-only front-end of the geometric mode (ALGORITHMS.md §3–4); its own parameter list.
+  /// The depth-only front-end of the geometric mode (docs/methods.md §3–§5); its own parameter list.
   geometry::GeometryConfig geometry;
 
   /// Calls visit(name, field, min, max, unit, doc) for every numeric parameter.
@@ -387,24 +355,7 @@ struct SlamConfig {
           "larger ICP corrections of the feature estimate are discarded");
     visit("icp_max_correction_deg", icp_max_correction_deg, 0.0, 90.0, "deg",
           "larger ICP rotation corrections of the feature estimate are discarded");
-    visit("wheel_vision_sigma_m", wheel_vision_sigma_m, 1e-5, 1.0, "m",
-          "per-frame translation noise of a registration, in the comparison with the wheel prior");
-    visit("wheel_vision_sigma_deg", wheel_vision_sigma_deg, 1e-3, 45.0, "deg",
-          "per-frame rotation noise of a registration, in the comparison with the wheel prior");
-    visit("wheel_gate_chi2", wheel_gate_chi2, 1.0, 1000.0, "",
-          "squared Mahalanobis distance beyond which vision and wheels disagree (6 degrees of freedom)");
-    visit("wheel_gate_window_frames", wheel_gate_window_frames, 1, 100, "",
-          "compared frames whose residuals from the wheel prior are summed for the window test");
-    visit("wheel_strong_inliers", wheel_strong_inliers, 3, 10000, "",
-          "a registration with this many inliers can overrule wheels it disagrees with as no slip does");
-    visit("wheel_slip_yaw_deg", wheel_slip_yaw_deg, 0.0, 45.0, "deg",
-          "heading residual from which vision otherwise agreeing with the wheels points to one slipping wheel");
-    visit("wheel_slip_min_frames", wheel_slip_min_frames, 1, 1000, "",
-          "frames in a row of slip-shaped residuals that make a wheel-slip event (vision keeps the pose)");
-    visit("wheel_slip_heading_frames", wheel_slip_heading_frames, 1, 1000, "",
-          "frames in a row of a heading residual of wheel_slip_yaw_deg turning one way that make a wheel-slip event");
-    visit("wheel_override_min_frames", wheel_override_min_frames, 1, 100000, "",
-          "frames in a row of strong vision disagreeing otherwise with the wheels before vision keeps the pose");
+    wheels.visit_parameters(visit);
     visit("fused_geometric_leaf_sigma", fused_geometric_leaf_sigma, 0.0, 10.0, "leaf",
           "fused mode: position noise of a geometric keypoint added per frame, in voxel leaves");
     visit("fused_icp_below_photometric_inliers", fused_icp_below_photometric_inliers, 0, 100000, "",

@@ -1,6 +1,6 @@
 #pragma once
 
-#include "rankslam/slam/camera.hpp"
+#include "rankslam/camera/depth_camera.hpp"
 #include "rankslam/slam/config.hpp"
 
 #include <Eigen/Geometry>
@@ -48,7 +48,7 @@ struct IcpResult {
 /// changes.
 class IcpRefiner {
  public:
-  IcpRefiner(const IcpSettings& settings, const DepthCameraModel& camera);
+  IcpRefiner(const IcpSettings& settings, const camera::DepthCameraModel& camera);
   ~IcpRefiner();
   IcpRefiner(const IcpRefiner&) = delete;
   IcpRefiner& operator=(const IcpRefiner&) = delete;
@@ -71,7 +71,7 @@ class IcpRefiner {
  private:
   struct Impl;
   IcpSettings settings_;
-  const DepthCameraModel& camera_;
+  const camera::DepthCameraModel& camera_;
   std::unique_ptr<Impl> impl_;
 };
 

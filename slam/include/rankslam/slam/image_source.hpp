@@ -11,7 +11,7 @@ namespace rankslam::slam {
 /// The image a frame's features were detected on.
 enum class ImageSource : std::uint8_t {
   kColour,    ///< The grey colour image.
-  kInfrared,  ///< The pre-processed IR image (dark scenes, ALGORITHMS.md §2).
+  kInfrared,  ///< The pre-processed IR image (dark scenes, docs/methods.md §2).
 };
 
 [[nodiscard]] constexpr std::string_view to_string(ImageSource source) {

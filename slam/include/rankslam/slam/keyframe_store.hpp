@@ -1,6 +1,6 @@
 #pragma once
 
-// The key-frames the back-end keeps (ALGORITHMS.md §3 "Back-end", §5): each stored key-frame's
+// The key-frames the back-end keeps (docs/methods.md §8, §10–§11): each stored key-frame's
 // photometric and geometric features (for loop-closure registration), its map points in its own
 // frame (so the map follows the optimised poses) and its pose-graph node. Every slot is
 // allocated at construction; storing a key-frame copies into a free slot, and when none is free
@@ -86,7 +86,7 @@ class KeyframeStore {
   int size_ = 0;
 };
 
-/// The adaptive loop-closure threshold ε (ALGORITHMS.md §5): ε = (μ_P − T_ε·σ_P) + (μ_G − T_ε·σ_G)
+/// The adaptive loop-closure threshold ε (docs/methods.md §10): ε = (μ_P − T_ε·σ_P) + (μ_G − T_ε·σ_G)
 /// over the photometric and geometric inlier counts of the loop closures accepted so far; the
 /// initial value until two closures exist. A candidate closes the loop when k_P + k_G ≥ ε.
 class AdaptiveLoopThreshold {

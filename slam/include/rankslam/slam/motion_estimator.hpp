@@ -48,7 +48,7 @@ class MotionEstimator {
   /// `T_target_source_predicted` (e.g. constant velocity) arbitrates when a low inlier fraction
   /// calls for a second estimate (see the implementation). `weights`, when not empty, multiply
   /// each correspondence's refit weight: the per-kind weights W_P, W_G of the fused registration
-  /// (ALGORITHMS.md §5).
+  /// (docs/methods.md §6).
   [[nodiscard]] MotionEstimate estimate(std::span<const Eigen::Vector3f> source,
                                         std::span<const Eigen::Vector3f> target,
                                         std::span<const double> sigma_m = {},

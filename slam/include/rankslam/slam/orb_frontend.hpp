@@ -1,6 +1,6 @@
 #pragma once
 
-#include "rankslam/slam/camera.hpp"
+#include "rankslam/camera/depth_camera.hpp"
 #include "rankslam/slam/config.hpp"
 #include "rankslam/slam/image_source.hpp"
 #include "rankslam/slam/orb_extractor.hpp"
@@ -42,7 +42,7 @@ struct FeatureMatch {
   std::uint32_t distance = 0;
 };
 
-/// Extracts ORB features and keeps those with depth in range (ALGORITHMS.md §2).
+/// Extracts ORB features and keeps those with depth in range (docs/methods.md §2).
 ///
 /// Measured and left out (fr1_rpy_head, photometric, ATE over seeds 1/3/6): bilinear sub-pixel
 /// depth with a 5 % discontinuity check, 0.029–0.031 m → 0.043–0.044 m; dropping keypoints with
@@ -56,13 +56,13 @@ class OrbFrontend {
  public:
   /// `fast_threshold` overrides config.orb_fast_threshold when positive (the IR image's contrast
   /// differs from the colour image's).
-  OrbFrontend(const SlamConfig& config, const DepthCameraModel& camera, int fast_threshold = 0);
+  OrbFrontend(const SlamConfig& config, const camera::DepthCameraModel& camera, int fast_threshold = 0);
 
   /// `gray` is the image features are detected on; `depth` the registered raw depth.
   void extract(const cv::Mat& gray, const cv::Mat& depth, PhotometricFeatures& features);
 
  private:
-  const DepthCameraModel& camera_;
+  const camera::DepthCameraModel& camera_;
   float min_depth_m_;
   float max_depth_m_;
   float depth_noise_per_m_;

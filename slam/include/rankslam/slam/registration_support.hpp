@@ -9,6 +9,8 @@
 // applied on the right of T_target_source, i.e. in the source (current) camera frame: the
 // convention of the pose graph's edge errors.
 
+#include "rankslam/core/lie.hpp"
+
 #include <Eigen/Core>
 #include <Eigen/Geometry>
 
@@ -16,15 +18,11 @@
 
 namespace rankslam::slam {
 
-using Matrix6d = Eigen::Matrix<double, 6, 6>;
+using lie::Matrix6d;
 
 /// A correspondence source[i] ↔ target[i] with noise sigma_m[i] is an inlier of T_target_source
 /// when ‖T·source − target‖ ≤ kInlierSigmas·sigma_m.
 inline constexpr double kInlierSigmas = 3.0;
-
-/// Adjoint of a pose on ξ = (rotation vector, translation): T·exp(ξ)·T⁻¹ = exp(adjoint(T)·ξ),
-/// i.e. a small motion of a frame expressed in the frame T maps it from.
-[[nodiscard]] Matrix6d adjoint(const Eigen::Isometry3d& T);
 
 /// The information PlaneIcp's prior takes (on ε = log(T·M⁻¹), in the target frame), for a prior
 /// whose strength `step_information` (diagonal: rotation [rad⁻²], translation [m⁻²]) holds the

@@ -1,6 +1,6 @@
 #pragma once
 
-// Cloud pre-processing from the organised depth image (ALGORITHMS.md §3.1–3.3, thesis §4.4.1–
+// Cloud pre-processing from the organised depth image (docs/methods.md §3, thesis §4.4.1–
 // 4.4.2): pass-through, adaptive voxel grid ρ = C·φ, and PCA normals over the dense cloud with a
 // deliberately large support, oriented toward the camera.
 //
@@ -32,7 +32,7 @@
 #include "rankslam/geometry/config.hpp"
 #include "rankslam/geometry/status.hpp"
 #include "rankslam/parallel/thread_team.hpp"
-#include "rankslam/slam/camera.hpp"
+#include "rankslam/camera/depth_camera.hpp"
 
 namespace rankslam::geometry {
 
@@ -111,7 +111,7 @@ int organised_normal(const BlockImage& blocks, float fx, const Eigen::Vector3f& 
 
 /// Mean nearest-neighbour distance of the pass-through cloud, estimated on every stride-th pixel
 /// from its 8 image neighbours; 0 when no pixel has a valid neighbour. Allocates (tests, tools).
-float organised_resolution(const cv::Mat& depth, const slam::DepthCameraModel& camera, int stride,
+float organised_resolution(const cv::Mat& depth, const camera::DepthCameraModel& camera, int stride,
                            float min_depth_m, float max_depth_m);
 
 /// Depth image → SampledCloud. configure() allocates; process() does not.
@@ -120,7 +120,7 @@ class CloudPreprocessor {
   /// Set-up: validates the config, sizes the hash table and the cloud for up to
   /// max_sampled_points voxels. Returns an error message, empty on success. With a team, the
   /// voxels' normals are shared among its threads.
-  [[nodiscard]] std::string configure(const slam::DepthCameraModel& camera,
+  [[nodiscard]] std::string configure(const camera::DepthCameraModel& camera,
                                       const GeometryConfig& config, int max_sampled_points,
                                       parallel::ThreadTeam* team = nullptr);
   [[nodiscard]] bool configured() const { return max_points_ > 0; }
@@ -217,7 +217,7 @@ class CloudPreprocessor {
   /// Doubles the slots `band` uses and enters its voxels again.
   void grow_slots(VoxelBand& band);
 
-  slam::DepthCameraModel camera_;
+  camera::DepthCameraModel camera_;
   GeometryConfig config_;
   int max_points_ = 0;
   std::size_t mask_ = 0;  // of the whole table

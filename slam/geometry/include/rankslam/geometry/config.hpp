@@ -1,6 +1,6 @@
 #pragma once
 
-// Parameters of the geometric front-end (ALGORITHMS.md §3–4; Yousif 2016 ch. 4–5). Thesis values
+// Parameters of the geometric front-end (docs/methods.md §3–§5; Yousif 2016 ch. 4–5). Thesis values
 // are the defaults where the thesis gives one; every other default is ours and says so.
 
 #include <cstdint>
@@ -174,7 +174,7 @@ struct GeometryConfig {
   double motion_gate_translation_m = 0.5;
   double motion_gate_rotation_deg = 45.0;
 
-  // --- ICP refinement (ALGORITHMS.md §2's optional step, on the sampled clouds) ----------------
+  // --- ICP refinement (docs/methods.md §7, on the sampled clouds) ----------------
   /// Point-to-plane ICP iterations after MSSE (coarse stage); 0 keeps the thesis' MSSE-only
   /// registration. Ours: descriptor matches between voxel centroids locate the motion to about
   /// a voxel leaf; the refinement is what brings frame-to-frame drift down to the sensor noise.

@@ -1,6 +1,6 @@
 #pragma once
 
-// The geometric front-end (ALGORITHMS.md §3–4, thesis ch. 4–5): depth image → sampled cloud with
+// The geometric front-end (docs/methods.md §3–§5, thesis ch. 4–5): depth image → sampled cloud with
 // normals → ROS / IS3D keypoints → SHOT descriptors → mutual matches → MSSE rigid registration.
 // Depth only: it works where the colour image has no texture.
 //
@@ -34,7 +34,7 @@
 #include "rankslam/robust/msse.hpp"
 #include "rankslam/robust/rigid.hpp"
 #include "rankslam/robust/workspace.hpp"
-#include "rankslam/slam/camera.hpp"
+#include "rankslam/camera/depth_camera.hpp"
 
 namespace rankslam::geometry {
 
@@ -147,7 +147,7 @@ class GeometricFrontend {
   /// per-frame loops (normals, saliency, descriptors, matching, hypotheses) are shared among its
   /// threads; the results are the same as without. The team must outlive this front-end and be
   /// used by one front-end call at a time.
-  [[nodiscard]] std::string configure(const slam::DepthCameraModel& camera,
+  [[nodiscard]] std::string configure(const camera::DepthCameraModel& camera,
                                       const GeometryConfig& config,
                                       const FrontendCapacities& capacities = {},
                                       parallel::ThreadTeam* team = nullptr);
@@ -170,7 +170,7 @@ class GeometricFrontend {
                                  const GeometricFeatures& current,
                                  GeometricCorrespondences& out);
 
-  /// Per frame, no allocation: matches, MSSE rigid registration (ALGORITHMS.md §1, §3.7), then
+  /// Per frame, no allocation: matches, MSSE rigid registration (docs/methods.md §1, §5), then
   /// the optional ICP refinement. `T_previous_current_guess` (e.g. constant velocity or wheel
   /// odometry) is ICP's fallback start; ok means a motion was estimated from either start.
   /// `prior` (optional) holds the ICP where the clouds leave the motion free (IcpConfig::prior).
@@ -188,7 +188,7 @@ class GeometricFrontend {
   /// Stage times of the last extract() (cloud, keypoints, descriptors) and register_frames()
   /// (matching, MSSE, ICP).
   [[nodiscard]] const StageTimes& last_times() const { return times_; }
-  [[nodiscard]] const slam::DepthCameraModel& camera() const { return camera_; }
+  [[nodiscard]] const camera::DepthCameraModel& camera() const { return camera_; }
 
  private:
   /// The processed cloud and the block means (the dense ICP source) into the features.
@@ -197,7 +197,7 @@ class GeometricFrontend {
   bool configured_ = false;
   GeometryConfig config_;
   FrontendCapacities capacities_;
-  slam::DepthCameraModel camera_;
+  camera::DepthCameraModel camera_;
   CloudPreprocessor preprocessor_;
   SampledCloud cloud_;
   KeypointDetector detector_;

@@ -1,6 +1,6 @@
 #pragma once
 
-// Point-to-plane ICP between two sampled clouds (ALGORITHMS.md §2's optional refinement, here
+// Point-to-plane ICP between two sampled clouds (docs/methods.md §7, here
 // on the voxel centroids with their normals). The descriptor matches locate keypoints only to
 // about a voxel leaf (centroids of differently placed voxels), so the MSSE estimate carries
 // centimetre errors; point-to-plane residuals do not depend on where a centroid lies within its

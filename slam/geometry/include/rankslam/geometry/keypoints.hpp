@@ -1,6 +1,6 @@
 #pragma once
 
-// Keypoint detectors over the sampled cloud: ROS (thesis ch. 4, ALGORITHMS.md §3.4), IS3D
+// Keypoint detectors over the sampled cloud: ROS (thesis ch. 4, docs/methods.md §4), IS3D
 // (thesis ch. 5, §4) and uniform sampling (the thesis' baseline). ROS and IS3D segment with
 // MSSE from rankslam::robust.
 

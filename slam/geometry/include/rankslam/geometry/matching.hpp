@@ -1,6 +1,6 @@
 #pragma once
 
-// Mutual nearest-neighbour matching of L2-normalised descriptors (ALGORITHMS.md §3.6): a pair
+// Mutual nearest-neighbour matching of L2-normalised descriptors (docs/methods.md §5): a pair
 // (a, b) is kept when b is a's nearest neighbour among B and a is b's among A.
 //
 // Exhaustive, not a tree: for unit vectors ‖a − b‖² = 2 − 2·a·b, so both nearest-neighbour

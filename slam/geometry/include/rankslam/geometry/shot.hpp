@@ -2,7 +2,7 @@
 
 // SHOT — Signature of Histograms of OrienTations (Tombari, Salti & Di Stefano, ECCV 2010), the
 // shape-only variant, computed as PCL's pcl::SHOTEstimation (1.13) does so that descriptors are
-// interchangeable with it (ALGORITHMS.md §3.5):
+// interchangeable with it (docs/methods.md §5):
 //  - local reference frame: eigenvectors of the covariance of the support points about the
 //    keypoint, each weighted by (R − distance) (Tombari et al.'s SHOT LRF); x and z signs point
 //    toward the majority of the support, ties broken on the 5 median-distance neighbours;

@@ -1,6 +1,6 @@
 #pragma once
 
-// The pose-graph back-end (ALGORITHMS.md §3 "Back-end", shared with §5): a node per key-frame
+// The pose-graph back-end (docs/methods.md §10–§11): a node per key-frame
 // pose, an edge per registration (sequential, loop closure, wheel odometry), minimised with
 // Levenberg–Marquardt in Ceres (the thesis used g2o).
 //

@@ -1,7 +1,7 @@
 #pragma once
 
 // MSSE — Modified Selective Statistical Estimator (Bab-Hadiashar & Suter 1999), as used
-// throughout Yousif 2016 (ch. 3 eq. 3.1, ch. 4 eqs. 4.3/4.4, ch. 5, ch. 7). ALGORITHMS.md §1.
+// throughout Yousif 2016 (ch. 3 eq. 3.1, ch. 4 eqs. 4.3/4.4, ch. 5, ch. 7). docs/methods.md §1.
 
 #include <algorithm>
 #include <atomic>
@@ -173,7 +173,7 @@ class TeamLeastKth {
 
 }  // namespace detail
 
-/// MSSE (ALGORITHMS.md §1) on any RobustModel:
+/// MSSE (docs/methods.md §1) on any RobustModel:
 ///  1. least-k-th-order selection over H minimal-sample hypotheses (nth_element per hypothesis,
 ///     with an exact early exit: a hypothesis with fewer than k0 residuals below the best k0-th
 ///     value cannot win, so evaluation stops once that is certain);

@@ -1,6 +1,6 @@
 #pragma once
 
-// The orientation model of IS3D (thesis ch. 5, eq. 5.1; ALGORITHMS.md §4): every point's unit
+// The orientation model of IS3D (thesis ch. 5, eq. 5.1; docs/methods.md §4): every point's unit
 // normal is a hypothesis, residual r_{h,f} = arccos(n_h · n_f) in radians.
 
 #include <span>

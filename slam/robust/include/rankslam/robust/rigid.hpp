@@ -107,7 +107,7 @@ class RigidModel {
 
   /// Per call, no allocation: copies the correspondences (column i of src matches column i of
   /// dst) and the optional non-negative per-correspondence weights, which weight the refit only
-  /// (e.g. W_P / W_G of the fused registration, ALGORITHMS.md §5). On error the model is empty.
+  /// (e.g. W_P / W_G of the fused registration, docs/methods.md §6). On error the model is empty.
   RobustStatus set_correspondences(const Eigen::Ref<const Eigen::Matrix3Xd>& src,
                                    const Eigen::Ref<const Eigen::Matrix3Xd>& dst,
                                    std::span<const double> weights = {});

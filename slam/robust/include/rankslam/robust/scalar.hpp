@@ -1,7 +1,7 @@
 #pragma once
 
 // The zero-parameter "model" of ROS / ROS2D saliency segmentation (thesis §4.3, §7.3;
-// ALGORITHMS.md §1, §3.4, §7.3): the residuals are the given non-negative values themselves.
+// docs/methods.md §1): the residuals are the given non-negative values themselves.
 
 #include <cstdint>
 #include <span>

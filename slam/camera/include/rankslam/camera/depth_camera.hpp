@@ -7,7 +7,7 @@
 #include <algorithm>
 #include <vector>
 
-namespace rankslam::slam {
+namespace rankslam::camera {
 
 /// Back-projection for the RGB-D camera. Depth is registered to the (distorted) colour image, so
 /// a pixel's ray comes from undoing the lens distortion; a table built at set-up holds the
@@ -53,4 +53,4 @@ class DepthCameraModel {
   std::vector<Eigen::Vector2f> rays_;
 };
 
-}  // namespace rankslam::slam
+}  // namespace rankslam::camera

@@ -1,8 +1,8 @@
 #pragma once
 
-// Small SE(3) helpers of the pose graph, on fixed-size Eigen types only (no allocation).
-// Tangent vectors are ξ = (ω, v): rotation vector first, then translation, with right
-// perturbations T·Exp(ξ) (see pose_graph.hpp for the SO(3)×R³ log).
+// SE(3) helpers for every part, on fixed-size Eigen types only (no allocation). Tangent vectors
+// are ξ = (ω, v): rotation vector first, then translation; the log is the SO(3)×R³ one (the
+// translation is the motion's own, not V(ω)⁻¹·t), which agrees with SE(3)'s to first order.
 
 #include <cmath>
 #include <utility>
@@ -11,9 +11,12 @@
 #include <Eigen/Core>
 #include <Eigen/Geometry>
 
-#include "rankslam/graph/pose_graph.hpp"
+#include "rankslam/core/units.hpp"
 
-namespace rankslam::graph::lie {
+namespace rankslam::lie {
+
+using Matrix6d = Eigen::Matrix<double, 6, 6>;
+using Vector6d = Eigen::Matrix<double, 6, 1>;
 
 // Rotations this far from orthonormal are rejected as not rigid; accumulated rounding in a
 // SLAM loop's poses stays orders of magnitude below it.
@@ -63,6 +66,13 @@ inline Matrix6d covariance(const Matrix6d& information) {
   return Eigen::LLT<Matrix6d>(information).solve(Matrix6d::Identity());
 }
 
+// Inverse of a symmetric positive-definite 6×6 (an information or covariance matrix), symmetric
+// to the last bit so that it can be inverted back and added up.
+inline Matrix6d symmetric_inverse(const Matrix6d& matrix) {
+  const Matrix6d inverse = matrix.llt().solve(Matrix6d::Identity());
+  return 0.5 * (inverse + inverse.transpose());
+}
+
 // Z⁻¹ and its covariance: (Z·Exp(δ))⁻¹ = Z⁻¹·Exp(−Ad(Z)·δ).
 inline std::pair<Eigen::Isometry3d, Matrix6d> invert(const Eigen::Isometry3d& Z,
                                                       const Matrix6d& covariance_z) {
@@ -70,7 +80,8 @@ inline std::pair<Eigen::Isometry3d, Matrix6d> invert(const Eigen::Isometry3d& Z,
   return {Z.inverse(), ad * covariance_z * ad.transpose()};
 }
 
-// Projects the rotation back onto SO(3) after a product of poses.
+// Projects the rotation back onto SO(3) after a product of poses: composing thousands of motions
+// lets rounding pull a rotation away from orthonormal, and a scaled rotation makes poses grow.
 inline Eigen::Isometry3d renormalised(const Eigen::Isometry3d& T) {
   Eigen::Isometry3d out = Eigen::Isometry3d::Identity();
   out.linear() = Eigen::Quaterniond(T.linear()).normalized().toRotationMatrix();
@@ -87,4 +98,8 @@ inline Vector6d log_so3_r3(const Eigen::Isometry3d& E) {
   return xi;
 }
 
-}  // namespace rankslam::graph::lie
+// The rotation angle of a motion in degrees, through the quaternion (atan2): accurate near zero,
+// where acos((trace - 1) / 2) is not.
+inline double rotation_deg(const Eigen::Isometry3d& T) { return rad_to_deg(Eigen::AngleAxisd(T.linear()).angle()); }
+
+}  // namespace rankslam::lie

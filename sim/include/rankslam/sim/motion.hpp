@@ -45,7 +45,7 @@ struct DriveSegment {
 /// Where a differential-drive robot is at one time.
 struct DriveState {
   Eigen::Vector2d xy_m = Eigen::Vector2d::Zero();
-  double heading_rad = 0.0;  ///< Wrapped to (-π, π].
+  double heading_rad = 0.0;  ///< Wrapped to [-π, π).
   double distance_m = 0.0;   ///< Signed distance driven since t = 0 (all loops).
   double turned_rad = 0.0;   ///< Signed heading change since t = 0, not wrapped (all loops).
   double speed_mps = 0.0;

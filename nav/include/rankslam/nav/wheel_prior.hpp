@@ -2,14 +2,14 @@
 
 #include "rankslam/hal/calibration.hpp"
 #include "rankslam/hal/messages.hpp"
+#include "rankslam/nav/wheel_arbiter.hpp"
 #include "rankslam/nav/wheel_odometry.hpp"
-#include "rankslam/slam/slam_loop.hpp"
 
 #include <Eigen/Geometry>
 
 #include <cstdint>
 
-namespace rankslam::app {
+namespace rankslam::nav {
 
 /// Why a frame went without a wheel prior.
 struct WheelPriorCounters {
@@ -26,23 +26,23 @@ struct WheelPriorCounters {
 /// construction (the odometry's history).
 class WheelPrior {
  public:
-  WheelPrior(const nav::WheelOdometryConfig& config, const hal::WheelGeometry& wheels,
+  WheelPrior(const WheelOdometryConfig& config, const hal::WheelGeometry& wheels,
              const Eigen::Isometry3d& T_base_cam);
 
   /// One CAN frame as received; frames with other identifiers are ignored.
-  nav::WheelFrameResult update(const hal::CanFrame& frame) { return odometry_.update(frame); }
+  WheelFrameResult update(const hal::CanFrame& frame) { return odometry_.update(frame); }
 
   /// The prior for the camera frame at `stamp_ns` (on the wheel frames' clock), or null when the
   /// wheels do not cover the interval since the previous call. Valid until the next call.
-  [[nodiscard]] const slam::MotionPrior* prior_for(std::int64_t stamp_ns);
+  [[nodiscard]] const MotionPrior* prior_for(std::int64_t stamp_ns);
 
-  [[nodiscard]] const nav::WheelOdometry& odometry() const { return odometry_; }
+  [[nodiscard]] const WheelOdometry& odometry() const { return odometry_; }
   [[nodiscard]] const WheelPriorCounters& counters() const { return counters_; }
 
  private:
-  nav::WheelOdometry odometry_;
+  WheelOdometry odometry_;
   Eigen::Isometry3d T_base_cam_;
-  slam::MotionPrior prior_;
+  MotionPrior prior_;
   bool have_previous_ = false;
   std::int64_t previous_stamp_ns_ = 0;
   WheelPriorCounters counters_;
@@ -53,4 +53,4 @@ class WheelPrior {
 /// stamps the CAN frames of the same recording have.
 [[nodiscard]] std::int64_t recording_stamp_ns(double stamp_s);
 
-}  // namespace rankslam::app
+}  // namespace rankslam::nav

@@ -1,8 +1,8 @@
-#include "rankslam/slam/camera.hpp"
+#include "rankslam/camera/depth_camera.hpp"
 
 #include <opencv2/calib3d.hpp>
 
-namespace rankslam::slam {
+namespace rankslam::camera {
 
 DepthCameraModel::DepthCameraModel(const hal::CameraCalibration& calibration, double depth_scale)
     : calibration_(calibration),
@@ -35,4 +35,4 @@ DepthCameraModel::DepthCameraModel(const hal::CameraCalibration& calibration, do
   for (std::size_t i = 0; i < count; ++i) rays_[i] = Eigen::Vector2f(normalised[i].x, normalised[i].y);
 }
 
-}  // namespace rankslam::slam
+}  // namespace rankslam::camera

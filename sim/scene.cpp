@@ -1,4 +1,5 @@
 #include "rankslam/sim/scene.hpp"
+#include "rankslam/core/units.hpp"
 
 #include "texture.hpp"
 
@@ -328,7 +329,7 @@ void build_zigzag(SceneModel& scene) {
   // Eight panels folded at ±40° to the x axis, standing on the floor, facing −y.
   const int panels = 8;
   const double width = 0.5;
-  const double angle = 40.0 * kPi / 180.0;
+  const double angle = deg_to_rad(40.0);
   const double step_x = width * std::cos(angle);
   Vector2d p(-0.5 * panels * step_x, 0.0);
   for (int i = 0; i < panels; ++i) {
@@ -453,7 +454,7 @@ void build_corridor(SceneModel& scene, std::uint64_t seed) {
   // stretch of the north wall.
   using Kind = DriveSegment::Kind;
   const double v = 0.3;
-  const double omega = 40.0 * kPi / 180.0;
+  const double omega = deg_to_rad(40.0);
   const double quarter = kPi / 2;
   std::vector<DriveSegment> plan = {
       {Kind::kPause, 1.0, 0.0, 1.0},       {Kind::kStraight, 6.0, v, 1.0},    {Kind::kTurn, quarter, omega, 1.0},
@@ -530,8 +531,8 @@ std::optional<SceneModel> make_scene(const std::string& name, std::uint64_t seed
     fisheye.cy = 299.5;
     fisheye.distortion = {0.0129, 0.00266, -0.00587, 0.00126, 0.0};
     // Above the colour camera, pitched up 8° and yawed 2° left.
-    const Eigen::Matrix3d R = (Eigen::AngleAxisd(2.0 * kPi / 180.0, Vector3d::UnitZ()) *
-                               Eigen::AngleAxisd(-8.0 * kPi / 180.0, Vector3d::UnitY()))
+    const Eigen::Matrix3d R = (Eigen::AngleAxisd(deg_to_rad(2.0), Vector3d::UnitZ()) *
+                               Eigen::AngleAxisd(deg_to_rad(-8.0), Vector3d::UnitY()))
                                   .toRotationMatrix() *
                               R_base_optical();
     fisheye.T_base_cam = pose(R, Vector3d(0.10, 0.02, 0.75));

@@ -1,5 +1,7 @@
 #include "rankslam/sim/motion.hpp"
 
+#include "rankslam/core/units.hpp"
+
 #include <algorithm>
 #include <cmath>
 #include <numbers>
@@ -8,11 +10,6 @@ namespace rankslam::sim {
 namespace {
 
 constexpr double kPi = std::numbers::pi;
-
-double wrap_angle(double angle_rad) {
-  angle_rad = std::remainder(angle_rad, 2.0 * kPi);
-  return angle_rad <= -kPi ? angle_rad + 2.0 * kPi : angle_rad;
-}
 
 // Cosine ramp up, plateau, cosine ramp down, covering |amount| at a peak rate.
 struct RateProfile {

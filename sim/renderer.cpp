@@ -1,4 +1,5 @@
 #include "renderer.hpp"
+#include "rankslam/core/units.hpp"
 
 #include "random.hpp"
 
@@ -260,7 +261,7 @@ BandWorkspace::BandWorkspace(int max_width, std::size_t max_quads) {
 Renderer::Renderer(const SceneModel& scene, const Settings& settings)
     : scene_(scene), settings_(settings), rgb_rays_(scene.calibration.rgb, std::numbers::pi / 2) {
   if (scene.calibration.fisheye) {
-    fisheye_rays_.emplace_back(*scene.calibration.fisheye, 95.0 * std::numbers::pi / 180.0);
+    fisheye_rays_.emplace_back(*scene.calibration.fisheye, deg_to_rad(95.0));
   }
   // Flattened mip levels of every texture.
   std::vector<std::size_t> first_level;

@@ -1,0 +1,80 @@
+#pragma once
+
+#include "rankslam/geometry/frontend.hpp"
+#include "rankslam/slam/backend.hpp"
+#include "rankslam/slam/config.hpp"
+#include "rankslam/slam/frame_result.hpp"
+#include "rankslam/slam/keyframe_store.hpp"
+#include "rankslam/slam/registrar.hpp"
+
+#include <cstddef>
+#include <cstdint>
+#include <vector>
+
+namespace rankslam::slam {
+
+/// Adaptive loop closure (docs/methods.md §10): a new key-frame is registered against the
+/// nearest stored key-frames (all in its own frame, or a few per frame from then on); a
+/// registration whose inliers pass the adaptive threshold ε, whose correction fits the drift
+/// since the candidate and whose inliers spread in two directions joins the pose graph.
+/// Everything is sized at construction.
+class LoopCloser {
+ public:
+  /// The store, registrar, front-end and back-end are the loop's and must outlive this.
+  LoopCloser(const SlamConfig& config, KeyframeStore& store, Registrar& registrar,
+             geometry::GeometricFrontend& geometric, Backend& backend);
+
+  /// Set-up, fused mode: room to keep a searching key-frame's geometric features over frames.
+  void keep_features_in(geometry::GeometricFeatures buffer) { search_copy_ = std::move(buffer); }
+
+  /// Starts the search of the new key-frame in `slot`; `geometric` is the frame's own geometric
+  /// features (null without geometry), kept where the search carries over into later frames.
+  void start(int slot, const geometry::GeometricFeatures* geometric);
+  /// Registers up to `count` pending candidates (all when 0); adds accepted closures to the graph.
+  void advance(int count, FrameResult& result);
+
+  [[nodiscard]] int closures() const { return closures_; }
+  /// The index-th accepted closure, or null once it has left the log (see SlamLoop::loop_closure).
+  [[nodiscard]] const LoopClosure* closure(int index) const;
+  [[nodiscard]] double threshold() const { return threshold_.value(); }
+
+  static constexpr int kClosureLogMinCapacity = 64;
+
+ private:
+  /// Registers one candidate; adds it to the graph if it closes a loop.
+  void try_candidate(StoredKeyframe& stored, FrameResult& result);
+
+  /// A stored key-frame near the searching one: the nearest are registered first.
+  struct Candidate {
+    double distance_m = 0.0;
+    int slot = -1;
+    std::int64_t sequence = 0;  ///< the slot's key-frame when chosen (it may be retired since)
+    bool operator<(const Candidate& other) const {
+      return distance_m < other.distance_m || (distance_m == other.distance_m && slot < other.slot);
+    }
+  };
+
+  const SlamConfig& config_;
+  KeyframeStore& store_;
+  Registrar& registrar_;
+  geometry::GeometricFrontend& geometric_;
+  Backend& backend_;
+  AdaptiveLoopThreshold threshold_;
+  /// The search under way: its key-frame, its candidates, nearest first, up to
+  /// loop_max_candidates of them, and the next one to register.
+  std::vector<Candidate> candidates_;
+  std::size_t tried_ = 0;
+  std::size_t next_ = 0;
+  int search_slot_ = -1;
+  std::int64_t search_sequence_ = 0;
+  /// The searching key-frame's features as extracted (the store keeps a thinned cloud and no
+  /// block means, which the ICP refinement of a closure uses): the frame's own while the search
+  /// ends in its frame, else search_copy_; null without geometry.
+  const geometry::GeometricFeatures* search_geometric_ = nullptr;
+  geometry::GeometricFeatures search_copy_;
+  int closures_ = 0;
+  /// The latest accepted closures, by index modulo the size.
+  std::vector<LoopClosure> log_;
+};
+
+}  // namespace rankslam::slam
