@@ -93,8 +93,8 @@ bool WheelArbiter::arbitrate(const MotionPrior& prior, const Eigen::Isometry3d& 
   check.disagree = check.frame_distance_sq > config_.gate_chi2 || check.window_distance_sq > config_.gate_chi2;
 
   // A planar base can make the residual: nothing across the drive direction, in height or in
-  // tilt beyond the vision noise. Along it registrations err by up to 8 cm in a plain corridor,
-  // so the forward residual says too little to be tested.
+  // tilt beyond the vision noise. Along it registrations err widely in a plain corridor, so the
+  // forward residual says too little to be tested.
   const bool planar = std::abs(check.lateral_residual_m) <= config_.vision_sigma_m &&
                       std::abs(check.height_residual_m) <= config_.vision_sigma_m &&
                       check.tilt_residual_deg <= config_.vision_sigma_deg;
@@ -116,7 +116,7 @@ bool WheelArbiter::arbitrate(const MotionPrior& prior, const Eigen::Isometry3d& 
     clear_window();
   }
   // The heading run excuses vision's height and tilt, not much across: registrations that turn
-  // about the scene instead of the camera (1-2 deg with 5-9 cm across, for a second) are no slip.
+  // about the scene instead of the camera (a turn with a sideways shift, for a second) are no slip.
   const int turn = check.yaw_residual_deg > 0.0 ? 1 : -1;
   if (std::abs(check.yaw_residual_deg) < config_.slip_yaw_deg ||
       std::abs(check.lateral_residual_m) > 2.0 * config_.vision_sigma_m) {
@@ -159,8 +159,8 @@ bool WheelArbiter::arbitrate(const MotionPrior& prior, const Eigen::Isometry3d& 
     check.fused = true;
     return true;
   }
-  // A registration error until shown otherwise (single disagreeing registrations in a plain
-  // corridor were off by 35 mm median, slip-free wheels by 0.04 mm).
+  // A registration error until shown otherwise: in a plain corridor a single disagreeing
+  // registration errs far more than slip-free wheels do.
   check.wheels_trusted = true;
   check.disagree_in_a_row = std::max({slip_shaped_in_a_row_, turning_in_a_row_, disagree_in_a_row_});
   return false;

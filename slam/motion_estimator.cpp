@@ -14,7 +14,7 @@ namespace {
 
 // Below this inlier fraction the noise-normalised MSSE gets a second opinion (see estimate()).
 // Its own result is then often the trap described there; above it, never in the recordings
-// measured (fr1_rpy_head: median inlier fraction 0.89).
+// measured.
 constexpr double kSecondOpinionBelow = 0.75;
 
 }  // namespace
@@ -134,11 +134,9 @@ MotionEstimate MotionEstimator::estimate(std::span<const Eigen::Vector3f> source
   // Ranking residuals in units of their noise makes far points (large σ) cheap inliers of almost
   // any motion. Where many of them sit on one quantised depth level in both frames, a motion
   // that shifts them in the image without changing their depth fits them near-exactly: the
-  // least-k-th-order fit picks it from a fraction of the matches and segmentation stops near k0
-  // (seen as 17 consecutive frames of 3 cm error in a simulated office, and in fr1_rpy_head
-  // frames 45-49). When the inlier fraction is low, MSSE ranks again in metres (noise weights in
-  // the refit only), and of the two motions the one closer to the constant-velocity prediction
-  // is kept. fr1_rpy_head ATE over seeds 1-6: mean 0.0319 m without, 0.0281 m with.
+  // least-k-th-order fit picks it from a fraction of the matches and segmentation stops near k0.
+  // When the inlier fraction is low, MSSE ranks again in metres (noise weights in the refit
+  // only), and of the two motions the one closer to the constant-velocity prediction is kept.
   if (!sigma_m.empty() && T_target_source_predicted != nullptr && result.inlier_count < kSecondOpinionBelow * n) {
     const Eigen::Isometry3d first = result.model;
     const int first_inliers = result.inlier_count;

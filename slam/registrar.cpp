@@ -104,10 +104,8 @@ MotionEstimate Registrar::register_frames(const PhotometricFeatures& target, con
   // IR: the projector's speckle pattern moves with the camera (only depth parallax shifts it),
   // and what the pre-processing leaves of it gives features that keep their pixel while the
   // camera moves. Such matches pull the estimate towards no motion; they are dropped unless they
-  // are the majority (then the camera did stop). Simulated dark office, seeds 1-6: ATE
-  // 0.015-0.025 m with, 0.025-0.038 m without. Colour images have no such pattern, and there the
-  // same test only removes true matches whenever the prediction is off (fr1_rpy_head mean ATE
-  // 0.028 -> 0.030 m), so it is not applied.
+  // are the majority (then the camera did stop). Colour images have no such pattern, and there
+  // the same test only removes true matches whenever the prediction is off, so it is not applied.
   bool drop_camera_fixed = false;
   if (current.source == ImageSource::kInfrared && target.source == ImageSource::kInfrared) {
     const Eigen::Isometry3f T_current_target = predicted.inverse().cast<float>();
@@ -145,8 +143,7 @@ MotionEstimate Registrar::register_frames(const PhotometricFeatures& target, con
   }
 
   stage_start = Clock::now();
-  // Per-correspondence noise (ranking and refit weights): fr1_rpy_head ATE over seeds 1-6, mean
-  // 0.0281 m with it, 0.0575 m without.
+  // Per-correspondence noise (ranking and refit weights): a keypoint's depth error grows with z².
   MotionEstimate estimate = estimator_.estimate(source_points_, target_points_, correspondence_sigma_m_, &predicted);
   result.inliers = estimate.inliers;
   result.noise_scale = estimate.noise_scale;
@@ -231,7 +228,7 @@ MotionEstimate Registrar::fused_estimate(const geometry::GeometricFeatures& targ
   // Where the view fixes only part of the motion, the ICP holds a prior in the rest: the feature
   // estimate when it is one (see SlamConfig::fused_max_noise_scale), else the previous pose. An
   // estimate that is no registration neither seeds the ICP (a corridor's end wall registered
-  // turned by 180 deg, and ICP from there stayed turned) nor holds it.
+  // turned around, and ICP from there stayed turned) nor holds it.
   last_photometric_inliers_ = photometric_inliers;
   last_photometric_rotation_sigma_deg_ =
       photometric_rotation_sigma_deg(photometric, static_cast<std::size_t>(photometric_count));
@@ -259,9 +256,8 @@ MotionEstimate Registrar::fused_estimate(const geometry::GeometricFeatures& targ
       // surfaces, and in what they leave free the ICP's prior. The base's drivable step carries
       // the feature estimate's information too; the prior is on a motion applied on the left,
       // the edge's on the right. Counted as the surfaces and features alone, key-frame edges
-      // within a turn held up to 0.85 m of error along the view (corridor loop, recording seed
-      // 3), and a loop closure's correction went into the turns (recording seed 1 with loop
-      // closure: ATE 0.0435 m that way, 0.0330 m with the prior).
+      // within a turn were far too certain along the view, and a loop closure's correction went
+      // into the turns.
       fused.information = cloud_surface_information(current_geometric, config_.graph_icp_sigma_m);
       if (icp_prior_is_drivable_step()) {
         const Matrix6d to_left = lie::adjoint(fused.T_target_source);
@@ -302,9 +298,9 @@ geometry::IcpPrior Registrar::fused_icp_prior(const Eigen::Isometry3d& at_rest, 
   if (!icp_prior_is_drivable_step()) {
     prior.T_previous_current = registered ? feature.T_target_source : at_rest;
     // At rest, the step is the robot base's (through the camera mount): a base turning in place
-    // swings the camera on its lever arm, 15 cm on the corridor robot, whose turns came out
-    // 30-45 % short while the camera itself was held still. A feature estimate's error is the
-    // camera's. Without a mount (identity) the two are the same.
+    // swings the camera on its lever arm, and its turns came out short while the camera itself
+    // was held still. A feature estimate's error is the camera's. Without a mount (identity) the
+    // two are the same.
     prior.information = step_prior_information(prior.T_previous_current,
                                                registered ? Eigen::Isometry3d::Identity() : T_base_cam_,
                                                icp_prior_information_);

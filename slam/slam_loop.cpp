@@ -167,7 +167,7 @@ bool SlamLoop::accept(const MotionEstimate& estimate, const Eigen::Isometry3d& T
     if (resuming) {
       // The prediction is an extrapolation; the pose must still be one the camera can have
       // reached since its last measured pose: the prediction's gate, widened by one gate per
-      // frame since then. (Without it, a plain corridor's end wall registered turned by 179 deg
+      // frame since then. (Without it, a plain corridor's end wall registered turned around
       // after a single failed frame.)
       const Eigen::Isometry3d since_tracked = T_world_last_tracked_.inverse() * T_world_candidate;
       const double frames_since_tracked = failed_in_a_row_ + 1.0;
@@ -292,10 +292,9 @@ FrameResult SlamLoop::process(const hal::RgbdFrame& frame, const nav::MotionPrio
     if (!have_depth) reason = "no usable depth";
     const TrackedFrame* target = nullptr;
     // After a failed frame the prediction extrapolates the last motion, which may be the wrong
-    // estimate that started the failure (fr1_rpy_head: one bad step of 11 cm, then 16 frames of
-    // strong registrations against the reference rejected as far from the extrapolation, and the
-    // track resumed 0.6 m off from the extrapolated previous frame). The reference's pose was
-    // measured: a registration that sees it as well as tracked frames do sets the pose again.
+    // estimate that started the failure, and would reject good registrations as far from it. The
+    // reference's pose was measured: a registration that sees it as well as tracked frames do
+    // sets the pose again.
     const bool resuming = failed_in_a_row_ > 0 && prior == nullptr;
     resumed_tracking_ = false;
     bool poor_fit = false;
@@ -313,9 +312,7 @@ FrameResult SlamLoop::process(const hal::RgbdFrame& frame, const nav::MotionPrio
           // Overlap relative to the inliers the reference had with the first frame registered
           // against it: that count is what full overlap looks like for this scene and image kind.
           // A fraction of the reference's features would depend on how matchable the features
-          // are: fr1 colour frames match 55-60 % of them, IR frames 25-35 %, simulated colour
-          // frames 95 %. (Measured with 0.6 of the features: IR references never lasted and the
-          // dark office drifted to 0.13 m ATE; relative 0.5: 0.020 m.)
+          // are, which differs widely between colour, IR and simulated images.
           if (reference_inliers_ == 0) reference_inliers_ = std::max(1, estimate.inliers);
           new_reference = estimate.inliers < config_.reference_min_overlap * reference_inliers_;
           poor_fit = !resuming && estimate.noise_scale > config_.reference_max_noise_scale;
@@ -336,17 +333,12 @@ FrameResult SlamLoop::process(const hal::RgbdFrame& frame, const nav::MotionPrio
         }
         new_reference = true;  // the following frames need a reference of the new kind
       }
-      // Measured alternative: registering against the previous frame as well whenever the
-      // overlap is low, keeping the result with more inliers, cost one more registration and
-      // raised the ATE (fr1_rpy_head seeds 1-6 mean 0.028 -> 0.034 m, dark office 0.020 ->
-      // 0.036 m): the previous frame is the fallback only.
+      // Registering against the previous frame as well whenever the overlap is low, keeping the
+      // result with more inliers, costs one more registration and is less accurate: the previous
+      // frame is the fallback only.
       // A reference registration whose inliers fit far worse than their noise says has lost the
       // reference although its inlier count has not dropped yet: the previous frame, closer in
       // view, is registered too and the better fit kept (and the frame becomes the reference).
-      // fr1_rpy_head fused, seed 4: a reference was held for 16 frames while its registrations'
-      // noise scale rose from 0.6 to 7.3, the last ones 2 deg and 6 cm off. This runs on 1-5 of
-      // the 180 frames; fused ATE over seeds 1-5 with loop closure, bound 2.0: mean 0.0221 ->
-      // 0.0200 m (1.5: 0.0192, 3.0: 0.0201), without 0.0279 -> 0.0267 m.
       if ((target == nullptr || poor_fit) && previous_ != reference_ && previous.features.source == source) {
         const FrameResult from_reference = result;
         const MotionEstimate estimate =
@@ -501,9 +493,7 @@ void SlamLoop::store_keyframe(const hal::RgbdFrame& frame, bool have_depth, Fram
       if (config_.mode != Mode::kGeometric) {
         // As uncertain as the chain of registrations from the previous key-frame: a direction
         // one weak registration on the way left to the motion model (along a plain corridor) is
-        // weak in the edge, so a loop closure's correction goes there (corridor loop, seed 1, no
-        // wheels: ATE with loop closure 0.0589 m with the key-frame's own registration's
-        // information, 0.0582 m with the chain's).
+        // weak in the edge, so a loop closure's correction goes there.
         information = lie::symmetric_inverse(current_covariance_);
       } else {
         information = backend_.registration_information(std::max(result.inliers, config_.min_inliers), result.noise_scale);

@@ -109,11 +109,9 @@ __attribute__((target("avx2,fma"))) inline float horizontal_sum(__m256 v) {
 // 4 × 3 blocks: 12 accumulators, 3 rows of B and one of A in registers (16 of 16 ymm), so that
 // each 8-float step loads 7 vectors for 12 FMAs (4 × 2 blocks: 6 loads for 8). The blocks sum
 // each dot product in the same order as the 4 × 2 blocks did; only the last nb mod 3 columns
-// (nb mod 2 before) go through the one-column loop, which rounds differently. Measured on
-// fr1_rpy_head (perf_geometry BM_MatchExhaustive, 400 × 400): 2.10 ms with 4 × 2 blocks, 1.46 ms.
-// On a 2 GHz Zen 1 it takes 4.2 ms, about 6.7 of that CPU's peak 8 float multiply-adds per
-// cycle; 16-bit fixed point (vpmaddwd) took 5.3 ms there: Zen 1 multiplies integer vectors
-// no faster.
+// (nb mod 2 before) go through the one-column loop, which rounds differently. 16-bit fixed point
+// (vpmaddwd) does not pay on Zen 1, whose integer vector multiplies are no faster
+// (docs/results.md §5).
 __attribute__((target("avx2,fma"))) void scan_avx2(const float* a, int na, const float* b,
                                                    int nb, int dim, Best& best) {
   const int vector_end = dim - dim % 8;

@@ -73,66 +73,43 @@ struct SlamConfig {
   int max_hamming_distance = 64;
   double min_depth_m = 0.3;
   double max_depth_m = 4.0;
-  // Effective depth error at a keypoint, sigma_z = a*z^2. Khoshelham & Elberink's 1.425e-3 is
-  // the Kinect's random noise on a plane; at keypoints (corners, texture edges) the colour-depth
-  // registration and the two sensors' timing add errors that also grow with z^2. With 5e-3 the
-  // refit weights follow 1/z^4 and near points dominate. fr1_rpy_head photometric ATE over seeds
-  // 1-6: mean 0.0281 m with 5e-3, 0.0300 m with 1.425e-3; simulated office scenes 0.006-0.012 m
-  // either way.
+  // Keypoint depth error sigma_z = a*z^2: the Kinect's plane noise (1.425e-3) plus colour-depth
+  // registration and timing errors at corners, which also grow with z^2 (docs/results.md §5).
   double depth_noise_per_m = 5e-3;
   double keypoint_sigma_px = 0.5;
-  // Rolling shutter of the colour camera: rows are exposed one after another over this time, so
-  // under fast rotation each keypoint is seen from a slightly different pose. Points are moved to
-  // the frame's mid-exposure pose with the constant-velocity motion. fr1_rpy_head (up to
-  // 3 deg/frame), ATE over seeds 1-6: mean 0.0396 m with 0, 0.0326 m with 10, 0.0281 m with
-  // 15 ms. A global-shutter camera (the simulator's) takes 0; 15 ms costs it nothing measurable
-  // (simulated office scenes 0.006-0.012 m either way).
+  // Colour camera readout time: under fast rotation keypoints move to the frame's mid-exposure
+  // pose; 15 ms fits fr1's Kinect, 0 a global shutter (docs/results.md §5).
   double rolling_shutter_readout_ms = 15.0;
   double ransac_threshold_m = 0.02;
   int ransac_iterations = 1000;
   int msse_hypotheses = 1000;
-  // MSSE kappa. With 0.1 the least-k-th-order fit latches in 1-5 % of the frames onto a small
-  // subset that fits far too well (points on one plane whose quantised depths are identical in
-  // both frames) and segmentation stops at k* ~ k0. 0.3 removes most of those; the smallest true
-  // inlier fraction seen on fr1_rpy_head is 0.42. ATE, 0.3 vs 0.1: fr1_rpy_head seeds 1-6 mean
-  // 0.0281 vs 0.0316 m, simulated dark office 0.011 vs 0.020 m.
+  // MSSE kappa: 0.1 lets the fit latch onto small subsets that fit too well (one plane's identical
+  // quantised depths); 0.3 stays below the true inlier fractions seen (docs/results.md §5).
   double msse_min_inlier_fraction = 0.3;
-  // MSSE rounds of re-segmenting and refitting after the first refit. The thesis refits once (0);
-  // more rounds shrink the inlier set towards its tightest core on real data: fr1_rpy_head ATE
-  // over seeds 1-6 mean 0.0281 m with 0, 0.0307 m with 3 (0.025-0.044).
+  // MSSE re-segment-and-refit rounds after the first refit: the thesis refits once (0); more rounds
+  // shrink the inlier set towards its tightest core on real data (docs/results.md §5).
   int msse_refine_iterations = 0;
   int min_inliers = 12;
   double max_step_translation_m = 0.5;
   double max_step_rotation_deg = 45.0;
   double max_deviation_translation_m = 0.1;
   double max_deviation_rotation_deg = 10.0;
-  // Failed frames take the constant-velocity prediction for this many frames in a row (half a
-  // second at 30 Hz: long enough to bridge a blur or a passing occluder); after that the pose is
-  // held. Extrapolating further would carry a robot that stopped in front of a blank wall off at
-  // its last speed: on the simulated corridor loop, unbounded extrapolation over 400 failed
-  // frames reached 1e40 m.
+  // Failed frames in a row that extrapolate at constant velocity (half a second at 30 Hz bridges a
+  // blur or an occluder); later ones hold the pose, so a stopped robot is not carried off.
   int max_extrapolated_frames = 15;
-  // Frame-to-key-frame tracking (see SlamLoop). ATE over fr1_rpy_head seeds 1-6 / simulated
-  // dark office: 0.3: 0.046 / 0.014 m, 0.5: 0.028 / 0.011 m, 0.7: 0.036 / 0.026 m, 1.0 (a new
-  // key-frame almost every frame): 0.039 / 0.059 m.
+  // Frame-to-key-frame tracking (see SlamLoop): a frame below this overlap becomes the reference;
+  // 0.5 was the most accurate of the values tried (docs/results.md §5).
   double reference_min_overlap = 0.5;
-  // A registration against the reference whose noise scale (MotionEstimate::noise_scale) exceeds
-  // this also registers against the previous frame and keeps the better fit (the frame then
-  // becomes the reference). Tracking registrations on fr1_rpy_head mostly have 0.5-1.5; fused ATE
-  // over seeds 1-5: 1.5: 0.0192 m, 2.0: 0.0200 m, 3.0: 0.0201 m, off: 0.0221 m.
+  // A reference registration with a larger noise scale also tries the previous frame and keeps
+  // the better fit: the inlier count alone holds on to a lost reference (docs/results.md §5).
   double reference_max_noise_scale = 2.0;
   double keyframe_translation_m = 0.25;
   double keyframe_rotation_deg = 15.0;
   double map_voxel_m = 0.02;
   int map_max_points = 2'000'000;
   int map_points_per_keyframe = 5000;
-  // Dark scenes (docs/methods.md §2). Lit indoor scenes read a mean grey level of about 100-160
-  // (fr1_rpy_head 109-161, fr1_desk 141-146, simulated office 98-124, poster wall 126-140); the
-  // simulated dark office reads 9-10, images of sensor noise. 30 sits well clear of both: a dim
-  // but lit room stays on colour, a room with the lights off goes to IR. The IR image gets its
-  // own FAST threshold: after the pre-processing its contrast is a fraction of a lit colour
-  // image's (20 finds ~90 corners on the dark office and 16 of 90 frames fail, ATE 0.15 m; 8
-  // finds ~700, none fails, ATE 0.011 m).
+  // Dark scenes (docs/methods.md §2): 30 lies well between lit rooms' mean grey level and a dark
+  // room's sensor noise; the IR image's low contrast needs a FAST threshold of its own.
   double ir_switch_brightness = 30.0;
   int ir_orb_fast_threshold = 8;
   int icp_max_iterations = 20;
@@ -145,153 +122,81 @@ struct SlamConfig {
   double icp_max_correction_deg = 1.0;
   /// The wheel/vision arbiter (SlamLoop::process with a MotionPrior).
   nav::WheelArbiterConfig wheels;
-  // Fused mode (docs/methods.md §6). Geometric keypoints are voxel centroids; their position noise
-  // in the combined MSSE gets this multiple of the voxel leaf per frame on top of the depth noise.
-  // Without it a geometric match counted as 2-4x more precise than an ORB match and pulled the
-  // estimate. fr1_rpy_head fused ATE, mean over seeds 1-5 (with the keypoints' rolling-shutter
-  // correction and the key-frames' velocities in loop closure): 0.032 m with 1, 0.025 m with 2;
-  // without loop closure 0.043 and 0.028 m. With 2, simulated office / zigzag-plain / poster-wall
-  // 0.0077 / 0.0007 / 0.0031 m, the corridor loops with wheels (seeds 1-5) 0.006-0.021 m.
+  // Fused mode (docs/methods.md §6): a geometric keypoint is a voxel centroid, which moves by up
+  // to a leaf between frames; with less noise its matches outweigh ORB's (docs/results.md §5).
   double fused_geometric_leaf_sigma = 2.0;
-  // Below this many photometric inliers the fused estimate is refined by the geometric ICP
-  // (coarse and fine). Without loop closure, fused ATE without ICP / with it always / below 100:
-  // simulated office 0.014 / 0.004 / 0.010 m, zigzag-plain 0.532 / 0.0007 / 0.0007 m,
-  // poster-wall 0.005 / 0.96 (ICP slides on the one plane) / 0.005 m. On fr1_rpy_head the ICP
-  // only hurts (Kinect noise on a cluttered desk): with loop closure, ATE 0.033 m below 100,
-  // 0.030 m below 30, while the simulated scenes stay at 0.0085 / 0.0007 / 0.0027 m. 0: never.
+  // Fewer photometric inliers call for the geometric ICP (coarse and fine; 0: never): it holds
+  // plain surfaces but hurts on a cluttered Kinect desk, hence a low bound (docs/results.md §5).
   int fused_icp_below_photometric_inliers = 30;
-  // The refinement also runs where the photometric inliers are many but fix the rotation poorly:
-  // a poster's worth of corners 2-3 m away sets tilt and height only together (simulated
-  // corridor: 40-60 inliers on one notice, registrations 1-2 deg and 5 cm off). Above this
-  // rotation uncertainty (1 sigma, from the inliers' information and their noise scale), the ICP
-  // refines. fr1_rpy_head's photometric registrations: median 0.20 deg, 90th percentile 0.64;
-  // the corridor's on its notices: median 1.8 deg, 10th percentile 0.68. Corridor loop (seed 1,
-  // no wheels), ATE without / with loop closure: 0.226 / 0.118 m with 0, 0.127 / 0.096 m with 1;
-  // fr1_rpy_head seeds 1-5 unchanged (0.0193-0.0207 m). 0: never.
+  // The ICP also refines where the photometric inliers fix the rotation worse than this (1 sigma):
+  // corners on one distant poster fix tilt and height only together (docs/results.md §5). 0: never.
   double fused_icp_above_rotation_sigma_deg = 1.0;
-  // That refinement where the view fixes only part of the motion (a lone wall fixes its
-  // distance and tilt, a corridor everything but the travel along it): the ICP holds a prior
-  // there. A feature estimate may be the prior only when it is one: at least min_inliers
-  // inliers fitting within fused_max_noise_scale of their predicted noise (a dozen matches of
-  // noise "fit" with a scale of 10-20: on the simulated corridor loop, seed 1, 96 % of the
-  // estimates above 5 were off by tens of degrees), and, unless the photometric kind has
-  // min_inliers inliers of its own, geometric inliers that leave a plane by
-  // fused_min_geometric_thickness_m (SHOT describes surface shape, and on one plane every
-  // keypoint looks alike: turning towards a blank wall, coplanar inliers set the camera 10-50 cm
-  // along it). Otherwise the prior is the previous frame's pose: what the view cannot see is
-  // taken to stand still. (Constant velocity there instead turned one wrongly registered step
-  // into a drift without end: corridor loop seeds 1 and 2, ATE 1.39 and 1.31 m against 0.21 and
-  // 0.24 m.) fused_icp_prior_sigma_* is the prior's strength on the step from its pose: the
-  // camera's for a feature estimate, the robot base's at rest (through the calibration's
-  // T_base_cam, so that a base turning in place may swing the camera on its mount).
-  // On a differential-drive robot (the calibration has `wheels`: a planar base, whether or not
-  // its encoders are read) the prior is the base's drivable step instead: the constant-velocity
-  // prediction kept to forward travel and a turn, no sideways slide, no change in height, roll or
-  // pitch, combined with the feature estimate when it is a registration (each by its
-  // information). A base cannot leave the floor, and between two frames it keeps about its speed;
-  // the feature estimate keeps that speed honest. Corridor loop (seed 1, no wheels), ATE without
-  // / with loop closure: 0.196 / 0.161 m (one false closure) with 0, 0.127 / 0.096 m with 1.
-  // (The drivable step alone, without the feature estimate, ran away along the corridor: 2.4 m;
-  // the full constant-velocity step as the prior tilted the camera by 30 deg facing the end wall,
-  // whose one plane leaves the turn about its normal free.) 0: the prior above on every platform.
+  // The ICP prior where the view leaves the motion free (docs/methods.md §6). 1: on a differential-
+  // drive base, its drivable step with the feature estimate; 0: that estimate or the previous pose.
   int fused_icp_base_kinematics = 1;
-  // The translation strength: on the corridor loop (no wheels, SLAM seed 1, ATE without / with
-  // loop closure) 1 cm gave 0.127 / 0.087 m on recording seed 1 and 0.187 / 0.106 m on seed 2;
-  // 5 mm gives 0.095 / 0.059 m and 0.092 / 0.050 m; 3 cm gave 0.218 / 0.177 m. fr1_rpy_head
-  // (seeds 1-2) and the simulated office, zigzag-plain and poster-wall are unchanged.
+  // The ICP prior's strength per frame on the step from its pose: 5 mm holds the travel along a
+  // plain corridor better than 1 or 3 cm (docs/results.md §1.3, §5).
   double fused_icp_prior_sigma_m = 0.005;
   double fused_icp_prior_sigma_deg = 1.0;
+  // A feature estimate is the ICP's prior only if its inliers fit within this multiple of their
+  // predicted noise: a dozen matches of noise fit far worse (docs/results.md §5).
   double fused_max_noise_scale = 2.0;
+  // Without min_inliers photometric inliers, the estimate's geometric inliers must also leave a
+  // plane by this much: on one plane every SHOT descriptor looks alike (docs/results.md §5).
   double fused_min_geometric_thickness_m = 0.1;
-  // An ICP-refined registration whose feature inliers fall below min_inliers is accepted on
-  // this many point-to-plane inliers (a lone wall at 1 m gives 1 000-4 000).
+  // An ICP-refined registration below min_inliers feature inliers needs this many point-to-plane
+  // inliers: a lone wall at 1 m gives thousands (docs/results.md §5).
   int min_icp_inliers = 300;
   // Back-end (docs/methods.md §8, §10–§11): key-frame store, loop closure, pose graph.
-  // Stored key-frames (features, map points, graph node, sampled cloud); when full, one far from
-  // the camera with the fewest loop closures is retired (KeyframeStore::retirement_candidate).
-  // About 1 MB each.
+  // Stored key-frames, about 1 MB each; when full, one far from the camera with the fewest loop
+  // closures is retired (KeyframeStore::retirement_candidate).
   int keyframe_capacity = 128;
-  // Sampled points (voxel centroids, normals, pixels) each key-frame keeps, so that a loop
-  // closure whose photometric inliers are weak (see fused_icp_below_photometric_inliers and
-  // fused_icp_above_rotation_sigma_deg) is refined by the geometric ICP against it, as tracking
-  // is. Evenly strided down to this many. 0: closures on feature matches alone, where weak ones
-  // are not taken. About 36 bytes a point. The corridor loop's closures all have weak
-  // photometric inliers: with 0 it closes nowhere (corridors 1 and 2, seed 1, no wheels: ATE
-  // 0.127 and 0.187 m), with 6000 it closes 8 and 6 times, none false, the worst 3 cm off
-  // (0.096 and 0.146 m). Unrefined, such closures were 2-9 cm and 0.5-1.7 deg off.
+  // Points (about 36 bytes each) a key-frame keeps to ICP-refine closures on weak photometric
+  // inliers; 0: those are not taken, so a plain corridor never closes (docs/results.md §5).
   int keyframe_cloud_points = 6000;
-  // Threads that share the per-frame loops (MSSE's hypotheses; the geometric front-end's cloud,
-  // keypoints, descriptors, matching and ICP), the tracking thread included: the robot
-  // computer's two cores. 1 keeps all on the tracking thread. The estimates are the same for any
-  // count.
+  // Threads sharing the per-frame loops, the tracking thread included: the robot computer's two
+  // cores. The estimates are the same for any count.
   int threads = 2;
-  // Loop-closure candidates: stored key-frames other than the last loop_min_keyframe_gap, within
-  // loop_search_radius_m / loop_search_rotation_deg of the new key-frame, both bounds widened by
-  // the drift allowed over the path travelled since the candidate (loop_drift_per_m of it, and
-  // loop_drift_deg_per_m); the loop_max_candidates nearest are registered.
+  // Loop-closure candidates: key-frames but the newest loop_min_keyframe_gap, within the radius and
+  // rotation widened by the drift allowed since; the loop_max_candidates nearest are registered.
   int loop_min_keyframe_gap = 5;
   double loop_search_radius_m = 0.5;
   double loop_search_rotation_deg = 30.0;
   double loop_drift_per_m = 0.1;
   double loop_drift_deg_per_m = 3.0;
   int loop_max_candidates = 3;
-  // Candidates registered per frame, from the key-frame's own frame on (0: all of them in the
-  // key-frame's frame). Each is a full fused registration: spread over the next frames they add
-  // one registration's time to a frame instead of loop_max_candidates', which lowers the longest
-  // frames and raises the median (more frames carry one; docs/results.md §2.2).
+  // Candidates registered per frame from the key-frame's on (0: all in its frame): spreading them
+  // lowers the longest frames and raises the median (docs/results.md §2.2).
   int loop_candidates_per_frame = 0;
   // Adaptive threshold ε on k_P + k_G (docs/methods.md §10): initial value until two closures exist
   // (lean low: the thesis saw 68-207), and T_ε.
   double loop_initial_threshold = 60.0;
   double loop_threshold_deviations = 1.0;
-  // Protection against false closures: the registered relative pose may differ from the graph's
-  // by at most this plus the drift allowance; the inliers must spread at least this far
-  // (square root of the middle eigenvalue of their covariance: not a line or a blob).
+  // Against false closures: the registered pose may differ from the graph's by at most this plus
+  // the drift allowance, and the inliers must spread this far (no line or blob).
   double loop_max_correction_m = 0.1;
   double loop_max_correction_deg = 5.0;
   double loop_min_inlier_spread_m = 0.05;
-  // A closure corrects the chain accumulated since its stored key-frame, so it must be more
-  // precise than tracking needs: it is refined by the geometric ICP on the key-frame's stored
-  // cloud (keyframe_cloud_points) when its photometric inliers fix the rotation worse than this
-  // (or are fewer than fused_icp_below_photometric_inliers). On the corridor loop (seed 1) a
-  // closure on 44 inliers of one notice, left unrefined under fused_icp_above_rotation_sigma_deg,
-  // was 9 cm and 1.6 deg off. 0: only the inlier count decides.
+  // A closure corrects the whole chain since its key-frame, so the ICP refines it already where its
+  // photometric inliers fix the rotation worse than this (docs/results.md §5). 0: by inlier count.
   double loop_icp_above_rotation_sigma_deg = 0.5;
-  // A refined closure is taken only where the surfaces fix every direction at least this fraction
-  // as well as the feature estimate they refine (least generalised eigenvalue of the ICP data
-  // information against the prior's). Facing the blank wall at the loop's stop, or seeing only the
-  // floor, the ICP leaves the closure where the few features put it, 4-16 cm off; dropping those
-  // took the corridor loop (seeds 1 and 2 of both recordings) from 0.095/0.136/0.118/0.080 m to
-  // 0.087/0.106/0.067/0.066 m ATE (0.03: 0.088/0.105, 0.3: 0.087/0.111, 1: 0.087/0.121 on seed 1).
+  // A refined closure is taken only where the surfaces fix every direction this fraction as well as
+  // the feature estimate: a blank wall or the floor alone fixes too little (docs/results.md §5).
   double loop_icp_min_information_ratio = 0.1;
-  // Edge information from the inlier count (graph::information_from_matches): the error of a
-  // registration on one match whose inliers fit as their predicted noise says; a registration
-  // that fits worse has its information divided by its noise scale squared
-  // (SlamLoop::registration_information).
+  // Error of a registration on one well-fitting match (graph::information_from_matches); a worse
+  // fit divides the information by its noise scale squared (Backend::registration_information).
   double graph_match_sigma_m = 0.02;
   double graph_match_sigma_deg = 1.0;
-  // Sequential edges of key-frames registered with the ICP refinement: the feature inliers'
-  // information (from their noise) plus the surfaces' point-to-plane information at this error
-  // per fully constraining direction, so that a loop closure bends the chain where the view left
-  // the motion free (along a featureless corridor) rather than evenly.
+  // ICP-refined key-frame edges add the surfaces' information at this error per fully constraining
+  // direction, so a loop closure bends the chain where the view left the motion free.
   double graph_icp_sigma_m = 0.005;
   int graph_iterations = 20;
-  // Wheel edges between consecutive key-frames (with a wheel prior on every frame between them):
-  // the wheel motion with its propagated covariance, plus this floor on the motion a planar base
-  // does not measure. 0 m: no wheel edges. The floor adds to every axis, so it must stay below
-  // the wheels' own noise over a key-frame step (1 cm/m over 25 cm: 5 mm) or it buries it:
-  // 1 cm / 0.5 deg per edge is 4 cm/m, and gave 3.1 cm ATE on the corridor loop against 1.7 cm
-  // with 1 mm / 0.05 deg.
+  // Wheel edges between key-frames: the wheel motion plus this floor per axis (0 m: none), kept
+  // below the wheels' own noise over a key-frame step (5 mm) not to bury it (docs/results.md §5).
   double graph_wheel_floor_m = 0.001;
   double graph_wheel_floor_deg = 0.05;
-  // On a differential-drive base (the calibration has `wheels`, whether or not they are read),
-  // consecutive key-frames are also joined by an edge that holds the base's height, roll and
-  // pitch (a base stays on its floor) to these. Vision alone lets them drift with every small
-  // pitch error (corridor loop, seed 1, no wheels: 0.30 m of height over the 21 m loop), and a
-  // loop closure then spreads the height error at the closure over the whole loop. With loop
-  // closure on that recording, height error (RMS after alignment) 0.022 -> 0.002 m and ATE
-  // 0.058 -> 0.054 m. Without a closure the graph is never optimised and nothing changes.
-  // 0: no such edges.
+  // Differential-drive base: key-frame edges hold height, roll and pitch, which vision lets drift
+  // and a closure would spread over the loop (docs/results.md §1.3, §5). 0: no such edges.
   double graph_planar_sigma_m = 0.005;
   double graph_planar_sigma_deg = 0.2;
   int seed = 1;

@@ -44,11 +44,8 @@ struct FeatureMatch {
 
 /// Extracts ORB features and keeps those with depth in range (docs/methods.md §2).
 ///
-/// Measured and left out (fr1_rpy_head, photometric, ATE over seeds 1/3/6): bilinear sub-pixel
-/// depth with a 5 % discontinuity check, 0.029–0.031 m → 0.043–0.044 m; dropping keypoints with
-/// a depth step above 5 % in their 3×3 neighbourhood, → 0.032 m; a grid of 8 columns with a
-/// per-cell quota over twice the keypoints, 0.028–0.032 m for twice the detection work. The
-/// nearest pixel's depth is used.
+/// The nearest pixel's depth is used: bilinear sub-pixel depth, dropping keypoints at depth steps
+/// and a per-cell detection quota were less accurate or cost more (docs/results.md §5).
 ///
 /// Features come from OrbExtractor, whose memory is fixed at construction, unless
 /// config.orb_implementation selects OpenCV's cv::ORB (which allocates on every frame).

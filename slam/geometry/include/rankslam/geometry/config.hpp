@@ -43,13 +43,8 @@ enum class Is3dRanking : std::uint8_t {
 /// Which points of ROS's group 2 (past MSSE's transition, its largest gross_error_fraction
 /// dropped) become the max_keypoints keypoints.
 enum class RosSelection : std::uint8_t {
-  /// The most salient (largest θ) first. Ours, not the thesis' wording: the first values past
-  /// the transition lie at the fringe of creases, where the transition moves with the noise. On
-  /// test/bench/geometry's repeatability pairs (10 per angle, 0/5/15/20°) this measured 96.9/
-  /// 94.6/92.0/90.7 % against 93.3/88.0/85.9/84.7 % on the simulated office and 98.9/97.7/98.0/
-  /// 98.8 % against 60.2/48.8/44.1/42.6 % on the simulated zig-zag panels, where the thesis'
-  /// reading falls below uniform sampling (85.9/65.4/54.3/52.1 %); fr1_rpy_head 58.5/84.3/79.9/
-  /// 71.3/60.0 % against 57.7/80.8/75.0/62.5/56.8 % (2/5/10/15/20°).
+  /// The most salient (largest θ) first. Ours: the first values past the transition lie at crease
+  /// fringes, where the transition moves with the noise (repeatability: docs/results.md §5).
   kMostSalient,
   /// The first values past the transition, in ascending θ (thesis §4.3.3: "the first 400 sorted
   /// values of GROUP 2").
@@ -82,18 +77,16 @@ struct GeometryConfig {
   double max_depth_m = 4.0;
   /// Points nearer than this are dropped (0 keeps every valid pixel).
   double min_depth_m = 0.0;
-  /// Pixel stride of the cloud-resolution estimate φ: the mean nearest-neighbour distance is
-  /// taken over every stride-th pixel in both directions, each pixel's nearest neighbour being
-  /// one of its 8 image neighbours. Ours: 4 measures within 1 % of the full cloud's mean.
+  /// Pixel stride of the cloud-resolution estimate φ (mean distance to the nearest of 8 image
+  /// neighbours). Ours: 4 measures close to the full cloud's mean (docs/results.md §5).
   int resolution_pixel_stride = 4;
   /// C in the adaptive voxel leaf ρ = C·φ (thesis eq. 4.5: 11 → about 4 000 points).
   double voxel_leaf_factor = 11.0;
   /// Bounds of ρ, so that a degenerate frame (all far, all near) cannot blow up the cloud.
   double min_voxel_leaf_m = 0.005;
   double max_voxel_leaf_m = 0.25;
-  /// Normal support radius = this × ρ. The thesis makes it "intentionally large" so that
-  /// normals bend near edges and corners (§4.4.2) without a number; ours: 1.5ρ (≈ 5 cm at
-  /// 1.5 m), chosen by keypoint repeatability and registration accuracy.
+  /// Normal support radius in ρ: "intentionally large" so normals bend near edges (thesis §4.4.2,
+  /// no number); ours, 1.5ρ (≈ 5 cm at 1.5 m), by keypoint repeatability and registration accuracy.
   double normal_radius_factor = 1.5;
   /// Dense neighbours sampled per axis of the normal's pixel window (the window spans the
   /// support radius at the point's depth; the stride is chosen to give about this many).
@@ -112,43 +105,26 @@ struct GeometryConfig {
   /// ROS: fraction of group 2's largest saliency values dropped as gross sensor errors (thesis
   /// §4.3.3: "e.g. last 5 %"). IS3D has its own, is3d_gross_error_fraction.
   double gross_error_fraction = 0.05;
-  /// IS3D: random normals tried as dominant-orientation hypotheses per round (n in thesis
-  /// eq. 5.1, not stated there; ours: 50, which finds a group of ≥ 10 % of the points with
-  /// probability 1 − 0.9⁵⁰ > 99 %).
+  /// IS3D: random normals tried per round as dominant orientations (n of thesis eq. 5.1, unstated;
+  /// ours: 50 finds a group of ≥ 10 % of the points with probability 1 − 0.9⁵⁰ > 99 %).
   int is3d_hypotheses = 50;
   /// IS3D: κ of each least-k-th-order orientation fit, relative to the points still unassigned.
   double is3d_min_inlier_fraction = 0.2;
-  /// IS3D: a found orientation group counts as dominant while it holds at least this fraction of
-  /// all sampled points; the search stops at the first smaller one. Ours: 20 %, the same share as
-  /// κ. Smaller limits remove small groups that are the creases themselves (the bent normals
-  /// along an edge share the bisector's orientation): repeatability on simulated office pairs
-  /// at 5/15/20° fell from 94/90/89 % (0.2) to 94/85/84 % (0.1) and 77/68/77 % (0.05).
+  /// IS3D: smallest share of all points a dominant group holds (ours: 20 %, as κ); smaller limits
+  /// remove the creases' own groups of bent normals and lose repeatability (docs/results.md §5).
   double is3d_min_group_fraction = 0.2;
   /// IS3D: at most this many dominant orientations are removed.
   int is3d_max_orientations = 6;
-  /// IS3D: a found group counts as a dominant orientation only while its MSSE noise scale (RMS
-  /// angle of its members to the fitted orientation) stays below this. Ours, not the thesis':
-  /// once the planes are removed, MSSE's transition test never fires on the remaining smoothly
-  /// spread normals (edges bent by the large normal radius, clutter), and without this bound
-  /// the next "orientation" swallows every remaining point (measured on fr1_rpy_head: no
-  /// features left in about half of the frames).
+  /// IS3D: largest RMS angle of a dominant group (ours): past the planes, MSSE's transition never
+  /// fires and the next "orientation" would swallow every remaining point (docs/results.md §5).
   double is3d_max_group_scale_deg = 30.0;
-  /// IS3D: fraction of the highest-ranked candidates dropped before the first max_keypoints are
-  /// kept (saliency and farthest-from-orientations rankings). Ours: none, as the thesis' IS3D
-  /// (ch. 5, Algorithm 3) drops none. ROS's cut is aimed at out-of-range sensor values, which the
-  /// pass-through and the invalid-depth test remove before sampling; on IS3D's candidates a 5 %
-  /// cut dropped the sharpest creases and corners instead. Repeatability (test/bench/geometry,
-  /// 10 pairs per angle, 0/5/15/20°) with 0.05 → 0: simulated office 96.7/93.6/90.4/89.3 →
-  /// 98.0/96.9/94.2/92.3 %, simulated zig-zag panels 99.3/98.0/99.3/99.6 → 99.8/97.8/99.8/
-  /// 99.9 %, fr1_rpy_head 60.7/81.2/76.5/67.9/58.6 → 58.4/83.3/78.5/71.7/61.2 % (2/5/10/15/20°);
-  /// fr1_rpy_head replay ATE geometric 0.1259 → 0.0876 m (one frame of 180 failed, none
-  /// before), fused 0.0302 → 0.0323 m.
+  /// IS3D: top-ranked candidates dropped before max_keypoints are kept (ours: none, as the thesis'
+  /// IS3D); a 5 % cut like ROS's drops the sharpest creases and corners (docs/results.md §5).
   double is3d_gross_error_fraction = 0.0;
 
   // --- SHOT (Tombari et al. 2010) --------------------------------------------------------------
-  /// Support radius of the SHOT descriptor and its local reference frame, over the sampled
-  /// cloud. Fixed in metres so that descriptors of frames at different depths stay comparable
-  /// (ours: 0.15 m ≈ 5ρ at 1.5 m).
+  /// Support radius of the SHOT descriptor and its local reference frame, over the sampled cloud;
+  /// fixed in metres (ours) so that descriptors of frames at different depths stay comparable.
   double shot_radius_m = 0.25;
   /// A keypoint with fewer support points (itself included) gets no descriptor (PCL: 5).
   int shot_min_neighbours = 5;
@@ -167,54 +143,41 @@ struct GeometryConfig {
   double lateral_sigma_m = 0.003;
   /// A registration with fewer MSSE inliers is reported as failed.
   int min_inliers = 10;
-  /// MSSE hypotheses farther than this from the caller's motion guess (identity by default) are
-  /// rejected before ranking (robust::RigidMotionGate). Frame-to-frame motion at 30 Hz is far
-  /// smaller; the gate stops repeated structure (e.g. a zigzag wall's period, 0.77 m) from
-  /// winning with a whole period's shift. 0 disables the translation or rotation limit.
+  /// MSSE hypotheses farther from the motion guess are rejected (robust::RigidMotionGate; 0: no
+  /// limit): motion at 30 Hz is far smaller, so repeated structure cannot win by a period's shift.
   double motion_gate_translation_m = 0.5;
   double motion_gate_rotation_deg = 45.0;
 
   // --- ICP refinement (docs/methods.md §7, on the sampled clouds) ----------------
-  /// Point-to-plane ICP iterations after MSSE (coarse stage); 0 keeps the thesis' MSSE-only
-  /// registration. Ours: descriptor matches between voxel centroids locate the motion to about
-  /// a voxel leaf; the refinement is what brings frame-to-frame drift down to the sensor noise.
+  /// Coarse point-to-plane ICP iterations after MSSE (0: the thesis' MSSE only). Ours: centroid
+  /// matches fix the motion to about a leaf; the ICP brings the drift down to the sensor noise.
   int icp_iterations = 8;
   /// Iterations of the fine stage: the current frame's dense block means against the previous
   /// frame's flattest centroids (see icp_fine_max_curvature and icp_fine_max_points).
   int icp_fine_iterations = 4;
   /// Current-frame sampled points used by coarse ICP at most (evenly strided).
   int icp_max_points = 1500;
-  /// Fine stage: the current frame's 4 × 4 pixel block means (not the sampled centroids) are
-  /// its points, at most this many (evenly strided). Measured on zigzag-plain with ICP started at
-  /// the true motion: 0.011 / 0.015 / 0.020° mean error per frame at 19 000 / 5 000 / 2 500
-  /// block means, 0.029° from the sampled centroids.
+  /// Fine stage: at most this many of the current frame's 4 × 4 pixel block means (evenly strided),
+  /// which fix the rotation better than the sampled centroids (docs/results.md §5).
   int icp_fine_max_points = 5000;
   /// ICP associations farther than this many voxel leaves are not made.
   double icp_max_distance_factor = 3.0;
   /// MSSE κ of the ICP residual segmentation.
   double icp_min_inlier_fraction = 0.3;
-  /// Coarse stage: only sampled points whose surface variation λ₀/Σλ (of the normal's PCA) is
-  /// below this take part. Near edges the deliberately large normal support bends the normals
-  /// and moves the centroids off the surfaces, which biases point-to-plane residuals.
+  /// Coarse stage: only points of surface variation λ₀/Σλ below this; near edges the large normal
+  /// support bends normals and moves centroids off the surfaces, biasing point-to-plane residuals.
   double icp_max_curvature = 0.02;
-  /// Fine stage limit: measured on zigzag-plain, ICP started at the true motion drifts 0.15° per
-  /// frame with every point, 0.05° below 0.01 and 0.02–0.04° below 0.003.
+  /// Fine stage limit: only the flattest points, as the fine ICP's drift falls with this limit
+  /// (docs/results.md §5).
   double icp_fine_max_curvature = 0.003;
-  /// 1: unless MSSE's estimate lies within 2 cm and 1° of the caller's motion guess (identity by
-  /// default), the coarse stage also starts from the guess, and the start whose result leaves
-  /// more associations within 2.5 × the better RMS wins. 0: MSSE's estimate is the only start
-  /// (the guess only when MSSE fails).
+  /// 1: unless MSSE's estimate is within 2 cm and 1° of the motion guess, the coarse stage also
+  /// starts from the guess and the start with more close associations wins. 0: MSSE's only.
   int icp_guess_fallback = 1;
   /// IcpConfig::prior_crossover: a caller's prior holds a direction with weight τ/(τ+λ), λ the
   /// data's information there over the prior's. 0: the whole prior everywhere.
   double icp_prior_crossover = 1.0;
-  /// The pass-through cuts on measured depth, so a surface near it keeps only the samples whose
-  /// noise fell nearer than the surface: its measured depth is pulled toward the camera, the
-  /// more the nearer it lies to the cut, and a registration approaching it comes out short. The
-  /// ICP leaves out points deeper than max_depth_m less this many depth-noise σ at max_depth_m
-  /// (0: none). Simulated corridor loop without wheels, recordings seeds 1 / 2 / 3, without /
-  /// with loop closure: 0.095 / 0.054, 0.092 / 0.050, 0.145 / 0.139 m with none; 0.085 / 0.044,
-  /// 0.090 / 0.059, 0.113 / 0.099 m with 2 σ (3.95 m of 4 m).
+  /// ICP leaves out points deeper than max_depth_m less this many depth-noise σ (0: none): near the
+  /// cut a surface keeps only its near-falling samples and comes out short (docs/results.md §1.3).
   double icp_pass_through_margin_sigmas = 2.0;
 
   /// Seed of the random choices (IS3D hypotheses, MSSE samples): equal seeds, equal results.
