@@ -47,8 +47,9 @@ list(FILTER _rankslam_example_configs EXCLUDE REGEX "/default\\.yaml$")  # top l
 if(_rankslam_example_configs)
   install(FILES ${_rankslam_example_configs} DESTINATION share/rankslam/config)
 endif()
-# The units' Documentation= points here.
+# The units' Documentation= points here; the README's links to docs/ resolve beside it.
 install(FILES ${PROJECT_SOURCE_DIR}/README.md DESTINATION share/doc/rankslam)
+install(FILES ${PROJECT_SOURCE_DIR}/docs/methods.md ${PROJECT_SOURCE_DIR}/docs/results.md DESTINATION share/doc/rankslam/docs)
 file(GLOB _rankslam_networkd CONFIGURE_DEPENDS ${PROJECT_SOURCE_DIR}/deploy/network/*.network)
 if(_rankslam_networkd)
   install(FILES ${_rankslam_networkd} DESTINATION share/rankslam/network)
