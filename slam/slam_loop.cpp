@@ -4,7 +4,6 @@
 #include "rankslam/slam/registration_support.hpp"
 
 #include <Eigen/Cholesky>
-#include <Eigen/Eigenvalues>
 #include <Eigen/LU>
 #include <opencv2/imgproc.hpp>
 
@@ -62,8 +61,6 @@ using lie::Matrix6d;
 SlamLoop::SlamLoop(const SlamConfig& config, const hal::Calibration& calibration)
     : config_(config),
       camera_(calibration.rgb, calibration.depth_scale),
-      T_base_cam_(calibration.rgb.T_base_cam),
-      differential_drive_(calibration.wheels.has_value()),
       orb_(config_, camera_),
       infrared_orb_(config_, camera_, config_.ir_orb_fast_threshold),
       map_(config.map_voxel_m, static_cast<std::size_t>(config.map_max_points)),
@@ -360,7 +357,7 @@ FrameResult SlamLoop::process(const hal::RgbdFrame& frame, const nav::MotionPrio
     }
     if (target != nullptr) {
       if (config_.icp_mode != IcpMode::kOff) refine_with_icp(*target, tracked, result);
-      if (prior != nullptr && !check_against_wheels(*prior, previous.T_world_cam, result.inliers, result)) {
+      if (prior != nullptr && !arbiter_.arbitrate(*prior, previous.T_world_cam, result.inliers, result.T_world_cam, result.wheels)) {
         target = nullptr;
         reason = "registration disagrees with the wheels";
       }
@@ -625,7 +622,7 @@ FrameResult SlamLoop::process_geometric(const hal::RgbdFrame& frame, const nav::
       tracked = accept(estimate, T_world_geometric_target_, T_world_geometric_previous_, predicted_motion(prior),
                        result.T_world_cam, reason);
       if (tracked && prior != nullptr &&
-          !check_against_wheels(*prior, T_world_geometric_previous_, descriptor_inliers, result)) {
+          !arbiter_.arbitrate(*prior, T_world_geometric_previous_, descriptor_inliers, result.T_world_cam, result.wheels)) {
         tracked = false;
         reason = "registration disagrees with the wheels";
       }

@@ -69,7 +69,7 @@ inline Matrix6d covariance(const Matrix6d& information) {
 // Inverse of a symmetric positive-definite 6×6 (an information or covariance matrix), symmetric
 // to the last bit so that it can be inverted back and added up.
 inline Matrix6d symmetric_inverse(const Matrix6d& matrix) {
-  const Matrix6d inverse = matrix.llt().solve(Matrix6d::Identity());
+  const Matrix6d inverse = covariance(matrix);
   return 0.5 * (inverse + inverse.transpose());
 }
 

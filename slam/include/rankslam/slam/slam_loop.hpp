@@ -11,11 +11,8 @@
 #include "rankslam/slam/loop_closer.hpp"
 #include "rankslam/slam/registrar.hpp"
 #include "rankslam/slam/icp.hpp"
-#include "rankslam/graph/background_optimizer.hpp"
-#include "rankslam/graph/pose_graph.hpp"
 #include "rankslam/slam/image_source.hpp"
 #include "rankslam/slam/keyframe_store.hpp"
-#include "rankslam/slam/motion_estimator.hpp"
 #include "rankslam/slam/orb_frontend.hpp"
 #include "rankslam/slam/point_map.hpp"
 #include "rankslam/nav/wheel_arbiter.hpp"
@@ -145,12 +142,6 @@ class SlamLoop {
   [[nodiscard]] const Eigen::Isometry3d& predicted_motion(const nav::MotionPrior* prior) const {
     return prior != nullptr ? prior->T_previous_current : last_motion_;
   }
-  /// With a prior: the arbiter decides whether the accepted registration (result.T_world_cam)
-  /// keeps the frame; false when the wheels overrule it.
-  [[nodiscard]] bool check_against_wheels(const nav::MotionPrior& prior, const Eigen::Isometry3d& T_world_previous,
-                                          int inliers, FrameResult& result) {
-    return arbiter_.arbitrate(prior, T_world_previous, inliers, result.T_world_cam, result.wheels);
-  }
   /// The tail every mode shares: a failed frame takes the prior, or extrapolates or holds the
   /// pose; a tracked one updates the motion model; then key-frame and map.
   void finish_frame(const hal::RgbdFrame& frame, bool have_depth, const Eigen::Isometry3d& T_world_previous,
@@ -158,10 +149,6 @@ class SlamLoop {
 
   SlamConfig config_;
   camera::DepthCameraModel camera_;
-  /// The camera's mounting on the base, to compare registered and wheel motion in base terms.
-  Eigen::Isometry3d T_base_cam_ = Eigen::Isometry3d::Identity();
-  /// The calibration describes a differential-drive base (SlamConfig::fused_icp_base_kinematics).
-  bool differential_drive_ = false;
   OrbFrontend orb_;
   OrbFrontend infrared_orb_;
   parallel::ThreadTeam team_;  // before the front-ends and the registrar that use it
