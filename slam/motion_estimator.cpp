@@ -20,8 +20,8 @@ constexpr double kSecondOpinionBelow = 0.75;
 }  // namespace
 
 struct MotionEstimator::Impl {
-  Impl(const SlamConfig& config, std::size_t max_points)
-      : mode(config.mode),
+  Impl(const SlamConfig& config, RobustEstimator robust_estimator, std::size_t max_points)
+      : estimator(robust_estimator),
         capacity(static_cast<int>(max_points)),
         model(capacity),
         workspace(capacity),
@@ -59,7 +59,7 @@ struct MotionEstimator::Impl {
     return n > 0 ? sum / n : 0.0;
   }
 
-  Mode mode;
+  RobustEstimator estimator;
   int capacity;
   robust::RigidModel model;
   robust::RobustWorkspace workspace;
@@ -72,8 +72,8 @@ struct MotionEstimator::Impl {
   robust::MsseTeamScratch<robust::RigidModel::Params> team;
 };
 
-MotionEstimator::MotionEstimator(const SlamConfig& config, std::size_t max_points)
-    : impl_(std::make_unique<Impl>(config, max_points)) {}
+MotionEstimator::MotionEstimator(const SlamConfig& config, RobustEstimator estimator, std::size_t max_points)
+    : impl_(std::make_unique<Impl>(config, estimator, max_points)) {}
 
 MotionEstimator::~MotionEstimator() = default;
 
@@ -109,7 +109,7 @@ MotionEstimate MotionEstimator::estimate(std::span<const Eigen::Vector3f> source
     estimate.failure_reason = "invalid correspondences";
     return estimate;
   }
-  if (impl.mode == Mode::kBaseline) {
+  if (impl.estimator == RobustEstimator::kRansac) {
     const auto result = robust::estimate_ransac(impl.model, impl.ransac, impl.workspace);
     if (!result.ok()) {
       estimate.failure_reason = robust::to_string(result.status);

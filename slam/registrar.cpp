@@ -1,23 +1,19 @@
 #include "rankslam/slam/registrar.hpp"
 
 #include "rankslam/core/lie.hpp"
+#include "rankslam/core/stopwatch.hpp"
 #include "rankslam/slam/registration_support.hpp"
 
 #include <algorithm>
-#include <chrono>
 #include <cmath>
 #include <limits>
 
 namespace rankslam::slam {
 namespace {
 
-using Clock = std::chrono::steady_clock;
 using enum StageTimes::Stage;
 using lie::Matrix6d;
 
-double elapsed_ms(Clock::time_point since) {
-  return std::chrono::duration<double, std::milli>(Clock::now() - since).count();
-}
 
 // A match "kept its pixel" when it moved less than kStillPx while the prediction moves its
 // point by more than kPredictedMovePx; kCameraFixed marks it (in place of its distance).
@@ -36,15 +32,15 @@ Matrix6d cloud_surface_information(const geometry::GeometricFeatures& features, 
 
 
 Registrar::Registrar(const SlamConfig& config, const camera::DepthCameraModel& camera,
-                     const Eigen::Isometry3d& T_base_cam, bool differential_drive, parallel::Companion& companion,
-                     geometry::GeometricFrontend& geometric)
+                     RobustEstimator estimator, const Eigen::Isometry3d& T_base_cam, bool differential_drive,
+                     parallel::Companion& companion, geometry::GeometricFrontend& geometric)
     : config_(config),
       camera_(camera),
       T_base_cam_(T_base_cam),
       differential_drive_(differential_drive),
       companion_(companion),
       geometric_(geometric),
-      estimator_(config, static_cast<std::size_t>(config.orb_features) * 2 +
+      estimator_(config, estimator, static_cast<std::size_t>(config.orb_features) * 2 +
                              static_cast<std::size_t>(geometry::FrontendCapacities{}.max_keypoints)) {
   const double prior_rad = deg_to_rad(config_.fused_icp_prior_sigma_deg);
   icp_prior_information_ << Eigen::Vector3d::Constant(1.0 / (prior_rad * prior_rad)),
@@ -78,7 +74,7 @@ MotionEstimate Registrar::register_frames(const PhotometricFeatures& target, con
                                          const Eigen::Isometry3d& at_rest,
                                          const geometry::GeometricFeatures* target_geometric,
                                          const geometry::GeometricFeatures* current_geometric, bool refine) {
-  auto stage_start = Clock::now();
+  auto stage_start = SteadyClock::now();
   const auto match_photometric = [&] {
     matcher_.match(target.descriptors, current.descriptors, config_.max_hamming_distance, matches_);
   };
@@ -142,7 +138,7 @@ MotionEstimate Registrar::register_frames(const PhotometricFeatures& target, con
                           result, predicted, at_rest, refine);
   }
 
-  stage_start = Clock::now();
+  stage_start = SteadyClock::now();
   // Per-correspondence noise (ranking and refit weights): a keypoint's depth error grows with z².
   MotionEstimate estimate = estimator_.estimate(source_points_, target_points_, correspondence_sigma_m_, &predicted);
   result.inliers = estimate.inliers;
@@ -157,7 +153,7 @@ MotionEstimate Registrar::fused_estimate(const geometry::GeometricFeatures& targ
                                         const Velocity& current_velocity, int geometric_count,
                                         FrameResult& result, const Eigen::Isometry3d& predicted,
                                         const Eigen::Isometry3d& at_rest, bool refine) {
-  auto stage_start = Clock::now();
+  auto stage_start = SteadyClock::now();
   const auto photometric_count = static_cast<int>(source_points_.size());
   // 1. Each kind alone: its inlier ratio says how well it fits this scene.
   constexpr int kMinimalSample = 3;
@@ -233,7 +229,7 @@ MotionEstimate Registrar::fused_estimate(const geometry::GeometricFeatures& targ
   last_photometric_rotation_sigma_deg_ =
       photometric_rotation_sigma_deg(photometric, static_cast<std::size_t>(photometric_count));
   if (refine && photometric_needs_refinement(config_.fused_icp_above_rotation_sigma_deg)) {
-    stage_start = Clock::now();
+    stage_start = SteadyClock::now();
     const std::span<const Eigen::Vector3f> all_source(source_points_);
     const std::span<const Eigen::Vector3f> all_target(target_points_);
     const std::span<const double> all_sigma(correspondence_sigma_m_);

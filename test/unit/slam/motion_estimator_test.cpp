@@ -38,8 +38,7 @@ Matches make_matches(double noise_rms_m, int count, std::uint32_t seed) {
 
 double noise_scale_of(const Matches& matches, double predicted_sigma_m) {
   SlamConfig config;
-  config.mode = Mode::kPhotometric;
-  MotionEstimator estimator(config, matches.source.size());
+  MotionEstimator estimator(config, RobustEstimator::kMsse, matches.source.size());
   const std::vector<double> sigma(matches.source.size(), predicted_sigma_m);
   const MotionEstimate estimate = estimator.estimate(matches.source, matches.target, sigma);
   EXPECT_TRUE(estimate.ok);
@@ -63,8 +62,7 @@ TEST(MotionEstimator, NoiseScaleGrowsWithTheNoiseBeyondThePrediction) {
 TEST(MotionEstimator, NoiseScaleIsOneWithoutPredictedNoise) {
   const Matches matches = make_matches(0.03, 300, 7);
   SlamConfig config;
-  config.mode = Mode::kPhotometric;
-  MotionEstimator estimator(config, matches.source.size());
+  MotionEstimator estimator(config, RobustEstimator::kMsse, matches.source.size());
   const MotionEstimate estimate = estimator.estimate(matches.source, matches.target);
   ASSERT_TRUE(estimate.ok);
   EXPECT_EQ(estimate.noise_scale, 1.0);

@@ -5,6 +5,7 @@
 
 #include <Eigen/Geometry>
 
+#include <cstdint>
 #include <memory>
 #include <span>
 #include <string_view>
@@ -30,11 +31,17 @@ struct MotionEstimate {
   std::string_view failure_reason;
 };
 
-/// Robust rigid 3D–3D estimation for the configured mode: fixed-threshold RANSAC for the
-/// baseline, MSSE otherwise. Workspaces are sized at construction.
+/// The robust estimator behind a registration.
+enum class RobustEstimator : std::uint8_t {
+  kMsse,    ///< Rank-order statistics, scale found per registration (docs/methods.md §2).
+  kRansac,  ///< Fixed metric threshold: the comparator the thesis measures MSSE against.
+};
+
+/// Robust rigid 3D–3D estimation with MSSE or fixed-threshold RANSAC. Workspaces are sized at
+/// construction.
 class MotionEstimator {
  public:
-  MotionEstimator(const SlamConfig& config, std::size_t max_points);
+  MotionEstimator(const SlamConfig& config, RobustEstimator estimator, std::size_t max_points);
   ~MotionEstimator();
   MotionEstimator(const MotionEstimator&) = delete;
   /// Set-up (allocates): shares MSSE's hypotheses among the threads of `team` from now on (the

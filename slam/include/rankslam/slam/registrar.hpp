@@ -32,8 +32,9 @@ class Registrar {
 
   /// `camera`, `companion` and `geometric` are the loop's and must outlive the registrar; the
   /// geometric front-end is configured by the loop (fused mode only).
-  Registrar(const SlamConfig& config, const camera::DepthCameraModel& camera, const Eigen::Isometry3d& T_base_cam,
-            bool differential_drive, parallel::Companion& companion, geometry::GeometricFrontend& geometric);
+  Registrar(const SlamConfig& config, const camera::DepthCameraModel& camera, RobustEstimator estimator,
+            const Eigen::Isometry3d& T_base_cam, bool differential_drive, parallel::Companion& companion,
+            geometry::GeometricFrontend& geometric);
 
   /// Set-up: shares MSSE's hypotheses among the threads of `team` (see MotionEstimator).
   void share_with(parallel::ThreadTeam* team) { estimator_.share_with(team); }

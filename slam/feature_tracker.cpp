@@ -1,0 +1,331 @@
+#include "feature_tracker.hpp"
+
+#include "rankslam/core/lie.hpp"
+#include "rankslam/core/stopwatch.hpp"
+
+#include <algorithm>
+#include <cmath>
+#include <stdexcept>
+#include <string>
+#include <string_view>
+
+namespace rankslam::slam {
+namespace {
+
+using enum StageTimes::Stage;
+
+IcpSettings icp_settings(const SlamConfig& config) {
+  IcpSettings settings;
+  settings.mode = config.icp_mode;
+  settings.max_depth_m = config.icp_max_depth_m;
+  settings.voxel_m = config.icp_voxel_m;
+  settings.pixel_stride = config.icp_pixel_stride;
+  settings.max_correspondence_m = config.icp_max_correspondence_m;
+  settings.max_iterations = config.icp_max_iterations;
+  settings.max_source_points = config.icp_max_source_points;
+  return settings;
+}
+
+Registrar::Velocity velocity_of(const Eigen::Isometry3d& motion, double dt_s) {
+  const Eigen::AngleAxisd rotation(motion.rotation());
+  Registrar::Velocity velocity;
+  velocity.head<3>() = rotation.angle() * rotation.axis() / dt_s;
+  velocity.tail<3>() = motion.translation() / dt_s;
+  return velocity;
+}
+
+}  // namespace
+
+FeatureTracker::FeatureTracker(const TrackerParts& parts, bool fused)
+    : parts_(parts),
+      config_(parts.config),
+      fused_(fused),
+      orb_(config_, parts.camera),
+      infrared_orb_(config_, parts.camera, config_.ir_orb_fast_threshold),
+      icp_(icp_settings(config_), parts.camera),
+      motion_(config_) {
+  const auto capacity = static_cast<std::size_t>(config_.orb_features) * 2;
+  for (auto& tracked : frames_) {
+    tracked.features.reserve(capacity);
+    if (config_.icp_mode != IcpMode::kOff) {
+      tracked.cloud.points.reserve(icp_.cloud_capacity());
+      tracked.cloud.normals.reserve(icp_.cloud_capacity());
+    }
+  }
+  bridge_.reserve(capacity);
+  if (!fused_) return;
+  if (const std::string error = parts_.geometric.configure(parts.camera, config_.geometry, {}, &parts_.team);
+      !error.empty()) {
+    throw std::invalid_argument(error);
+  }
+  for (auto& tracked : frames_) tracked.geometric = parts_.geometric.make_features();
+  parts_.registrar.size_geometric_matches();
+  if (config_.threads > 1) {
+    // The ORB features are extracted on the companion while the geometric ones take the team.
+    if (const std::string error = parts_.companion.start(); !error.empty()) {
+      throw std::invalid_argument("slam.threads: " + error);
+    }
+    const auto warm_up = [images = &parts_.images] { images->warm_up(); };
+    parts_.companion.launch(warm_up);  // a thread of its own for OpenCV too
+    parts_.companion.wait();
+  }
+}
+
+void FeatureTracker::extract(const hal::RgbdFrame& frame, const cv::Mat* image, ImageSource source,
+                             bool have_depth, const nav::MotionPrior* prior, FrameResult& result) {
+  auto stage_start = SteadyClock::now();
+  TrackedFrame& tracked = frames_[static_cast<std::size_t>(current_)];
+  const auto extract_photometric = [&] {
+    if (image != nullptr && have_depth) {
+      orb_for(source).extract(*image, frame.depth, tracked.features);
+    } else {
+      tracked.features.clear();
+    }
+  };
+  // Fused: the ORB features on the companion thread while the geometric ones take the team
+  // (fr1_rpy_head features stage, docs/results.md §2.3).
+  if (fused_) {
+    parts_.companion.launch(extract_photometric);
+    if (!have_depth || parts_.geometric.extract(frame.depth, tracked.geometric) != geometry::GeometryStatus::kOk) {
+      tracked.geometric.count = 0;
+    }
+    parts_.companion.wait();
+  } else {
+    extract_photometric();
+  }
+  tracked.features.source = source;
+  tracked.id = ++frame_counter_;
+  const double frame_dt_s =
+      previous_ >= 0 ? std::clamp(frame.stamp_s - previous_stamp_s_, 0.005, 0.5) : 1.0 / 30.0;
+  previous_stamp_s_ = frame.stamp_s;
+  tracked.velocity = velocity_of(motion_.predicted(prior), frame_dt_s);
+  result.features = static_cast<int>(tracked.features.size()) + (fused_ ? tracked.geometric.count : 0);
+  result.times.ms[kFeatures] = elapsed_ms(stage_start);
+  if (config_.icp_mode != IcpMode::kOff) {
+    stage_start = SteadyClock::now();
+    if (have_depth) {
+      icp_.build_cloud(frame.depth, tracked.cloud);
+    } else {
+      tracked.cloud.points.clear();
+      tracked.cloud.normals.clear();
+    }
+    result.times.ms[kIcp] = elapsed_ms(stage_start);
+  }
+}
+
+void FeatureTracker::track(const hal::RgbdFrame& frame, const nav::MotionPrior* prior, FrameResult& result) {
+  chain_restarted_ = false;
+  const auto stage_start = SteadyClock::now();
+  const ImageSource source = parts_.images.choose_source(frame);
+  const cv::Mat* image = parts_.images.feature_image(frame, source);
+  const bool have_depth = parts_.images.has_depth(frame);
+  result.image_source = source;
+  result.times.ms[kPreprocess] = elapsed_ms(stage_start);
+
+  current_ = 0;
+  while (current_ == reference_ || current_ == previous_) ++current_;
+  extract(frame, image, source, have_depth, prior, result);
+
+  new_reference_ = false;
+  if (previous_ < 0) {
+    result.status = FrameStatus::kFirstFrame;
+    result.T_world_cam = Eigen::Isometry3d::Identity();
+    new_reference_ = true;
+    current_covariance_.setZero();
+    step_covariance_.setZero();
+    return;
+  }
+  const TrackedFrame& previous = frames_[static_cast<std::size_t>(previous_)];
+  const TrackedFrame* target = register_current(frame, image, source, have_depth, prior, result);
+  chain_covariance(target, target == &frames_[static_cast<std::size_t>(reference_)] ? reference_covariance_
+                                                                                   : previous_covariance_,
+                   result);
+  motion_.finish(previous.T_world_cam, prior, result);
+}
+
+const FeatureTracker::TrackedFrame* FeatureTracker::register_current(const hal::RgbdFrame& frame,
+                                                                     const cv::Mat* image, ImageSource source,
+                                                                     bool have_depth, const nav::MotionPrior* prior,
+                                                                     FrameResult& result) {
+  const TrackedFrame& tracked = frames_[static_cast<std::size_t>(current_)];
+  const TrackedFrame& previous = frames_[static_cast<std::size_t>(previous_)];
+  const TrackedFrame& reference = frames_[static_cast<std::size_t>(reference_)];
+  const Eigen::Isometry3d& predicted_step = motion_.predicted(prior);
+  const Eigen::Isometry3d T_world_predicted = previous.T_world_cam * predicted_step;
+  const geometry::GeometricFeatures* current_geometric = fused_ ? &tracked.geometric : nullptr;
+  std::string_view reason;
+  accepted_information_.setZero();
+  // Fused mode registers on depth alone when the frame has no usable image.
+  if (image == nullptr && !fused_) reason = "no usable image";
+  if (!have_depth) reason = "no usable depth";
+  const TrackedFrame* target = nullptr;
+  // After a failed frame the prediction extrapolates the last motion, which may be the wrong
+  // estimate that started the failure, and would reject good registrations as far from it. The
+  // reference's pose was measured: a registration that sees it as well as tracked frames do
+  // sets the pose again.
+  const bool resuming = motion_.resuming(prior);
+  motion_.set_resumed(false);
+  bool poor_fit = false;
+  if (reason.empty()) {
+    if (reference.features.source == source) {
+      const MotionEstimate estimate = parts_.registrar.register_frames(
+          reference.features, reference.velocity, tracked.features, tracked.velocity, result,
+          reference.T_world_cam.inverse() * T_world_predicted, reference.T_world_cam.inverse() * previous.T_world_cam,
+          fused_ ? &reference.geometric : nullptr, current_geometric);
+      if (motion_.accept(estimate, reference.T_world_cam, previous.T_world_cam, predicted_step, result.T_world_cam,
+                         reason, resuming, reference_inliers_)) {
+        target = &reference;
+        accepted_information_ = estimate.information;
+        motion_.set_resumed(resuming);
+        // Overlap relative to the inliers the reference had with the first frame registered
+        // against it: that count is what full overlap looks like for this scene and image kind.
+        // A fraction of the reference's features would depend on how matchable the features
+        // are, which differs widely between colour, IR and simulated images.
+        if (reference_inliers_ == 0) reference_inliers_ = std::max(1, estimate.inliers);
+        new_reference_ = estimate.inliers < config_.reference_min_overlap * reference_inliers_;
+        poor_fit = !resuming && estimate.noise_scale > config_.reference_max_noise_scale;
+      }
+    } else if (const cv::Mat* bridge_image = parts_.images.feature_image(frame, reference.features.source);
+               bridge_image != nullptr) {
+      const auto stage_start = SteadyClock::now();
+      orb_for(reference.features.source).extract(*bridge_image, frame.depth, bridge_);
+      result.times.ms[kFeatures] += elapsed_ms(stage_start);
+      const MotionEstimate estimate = parts_.registrar.register_frames(
+          reference.features, reference.velocity, bridge_, tracked.velocity, result,
+          reference.T_world_cam.inverse() * T_world_predicted, reference.T_world_cam.inverse() * previous.T_world_cam,
+          fused_ ? &reference.geometric : nullptr, current_geometric);
+      if (motion_.accept(estimate, reference.T_world_cam, previous.T_world_cam, predicted_step, result.T_world_cam,
+                         reason)) {
+        target = &reference;
+        accepted_information_ = estimate.information;
+      }
+      new_reference_ = true;  // the following frames need a reference of the new kind
+    }
+    // The previous frame is the fallback only: registering against it as well whenever the
+    // overlap is low costs one more registration and is less accurate. A reference registration
+    // whose inliers fit far worse than their noise says has lost the reference although its
+    // inlier count has not dropped yet: the previous frame, closer in view, is registered too and
+    // the better fit kept (and the frame becomes the reference).
+    if ((target == nullptr || poor_fit) && previous_ != reference_ && previous.features.source == source) {
+      const FrameResult from_reference = result;
+      const MotionEstimate estimate = parts_.registrar.register_frames(
+          previous.features, previous.velocity, tracked.features, tracked.velocity, result, predicted_step,
+          Eigen::Isometry3d::Identity(), fused_ ? &previous.geometric : nullptr, current_geometric);
+      if ((target == nullptr || estimate.noise_scale < from_reference.noise_scale) &&
+          motion_.accept(estimate, previous.T_world_cam, previous.T_world_cam, predicted_step, result.T_world_cam,
+                         reason)) {
+        target = &previous;
+        accepted_information_ = estimate.information;
+        new_reference_ = true;
+      } else if (target != nullptr) {
+        const StageTimes times = result.times;
+        result = from_reference;
+        result.times = times;
+      }
+    }
+  }
+  if (target != nullptr) {
+    if (config_.icp_mode != IcpMode::kOff) refine_with_icp(*target, tracked, result);
+    if (prior != nullptr &&
+        !parts_.arbiter.arbitrate(*prior, previous.T_world_cam, result.inliers, result.T_world_cam, result.wheels)) {
+      target = nullptr;
+      reason = "registration disagrees with the wheels";
+    }
+  }
+  if (new_reference_ && target == &reference && result.wheels.fused &&
+      std::abs(result.wheels.yaw_residual_deg) >= parts_.arbiter.least_slip_turn_deg()) {
+    // The pose took the wheels' heading, not vision's: as the next frames' reference it would
+    // hide a slip building up. The old reference still registers, so it stays.
+    new_reference_ = false;
+  }
+  if (target != nullptr) {
+    result.status = FrameStatus::kTracking;
+  } else {
+    result.status = prior != nullptr ? FrameStatus::kWheels : FrameStatus::kFailed;
+    result.failure_reason = reason;
+    new_reference_ = false;  // the reference stays: the next frame that sees it snaps back
+  }
+  return target;
+}
+
+void FeatureTracker::refine_with_icp(const TrackedFrame& target, const TrackedFrame& current, FrameResult& result) {
+  const auto stage_start = SteadyClock::now();
+  icp_.set_target(target.cloud, target.id);
+  const Eigen::Isometry3d T_target_current = target.T_world_cam.inverse() * result.T_world_cam;
+  const IcpResult refined = icp_.align(current.cloud, T_target_current);
+  if (refined.ok) {
+    // A large correction means ICP slid along a plane or into another minimum rather than
+    // refining the feature estimate.
+    const Eigen::Isometry3d correction = T_target_current.inverse() * refined.T_target_source;
+    if (correction.translation().norm() <= config_.icp_max_correction_m &&
+        lie::rotation_deg(correction) <= config_.icp_max_correction_deg) {
+      result.T_world_cam = target.T_world_cam * refined.T_target_source;
+      result.icp_refined = true;
+    }
+  }
+  result.times.ms[kIcp] += elapsed_ms(stage_start);
+}
+
+void FeatureTracker::chain_covariance(const TrackedFrame* target, const Matrix6d& target_covariance,
+                                      const FrameResult& result) {
+  const Backend& backend = parts_.backend;
+  if (target == nullptr) {
+    // Not registered: the pose is extrapolated or the wheels'; a frame registered against it
+    // later inherits no more than one floor's worth of confidence.
+    step_covariance_ = lie::symmetric_inverse(backend.sequential_information_floor());
+    current_covariance_ = target_covariance + step_covariance_;
+    return;
+  }
+  const Matrix6d information =
+      (accepted_information_.any()
+           ? Matrix6d(accepted_information_)
+           : backend.registration_information(std::max(result.inliers, config_.min_inliers), result.noise_scale)) +
+      backend.sequential_information_floor();
+  step_covariance_ = lie::symmetric_inverse(information);
+  // T_K_c·exp(ξ_c) = T_K_t·exp(ξ_t)·T_t_c·exp(ξ) gives ξ_c = Ad(T_t_c⁻¹)·ξ_t + ξ.
+  const Matrix6d carry = lie::adjoint((target->T_world_cam.inverse() * result.T_world_cam).inverse());
+  current_covariance_ = carry * target_covariance * carry.transpose() + step_covariance_;
+}
+
+TrackedFeatures FeatureTracker::features() const {
+  const TrackedFrame& tracked = frames_[static_cast<std::size_t>(current_)];
+  return {&tracked.features, fused_ ? &tracked.geometric : nullptr, tracked.velocity};
+}
+
+Eigen::Matrix<double, 6, 6> FeatureTracker::keyframe_edge_information(const FrameResult& /*result*/) const {
+  // As uncertain as the chain of registrations from the previous key-frame: a direction one weak
+  // registration on the way left to the motion model (along a plain corridor) is weak in the
+  // edge, so a loop closure's correction goes there.
+  return lie::symmetric_inverse(current_covariance_);
+}
+
+void FeatureTracker::keyframe_stored() {
+  current_covariance_.setZero();
+  chain_restarted_ = true;
+}
+
+void FeatureTracker::correct(const Eigen::Isometry3d& correction) {
+  for (TrackedFrame& tracked : frames_) tracked.T_world_cam = lie::renormalised(correction * tracked.T_world_cam);
+}
+
+void FeatureTracker::end_frame(FrameResult& result) {
+  frames_[static_cast<std::size_t>(current_)].T_world_cam = result.T_world_cam;
+  if (chain_restarted_ && !new_reference_ && previous_ >= 0) {
+    // The reference is older than the key-frame this frame became: its pose relative to the
+    // key-frame is the inverse of this frame's registration, T_K_r = (T_r_K·exp(b))⁻¹ =
+    // T_K_r·exp(−Ad(T_r_K)·b).
+    const Matrix6d carry =
+        lie::adjoint(frames_[static_cast<std::size_t>(reference_)].T_world_cam.inverse() * result.T_world_cam);
+    reference_covariance_ = carry * step_covariance_ * carry.transpose();
+  }
+  previous_covariance_ = current_covariance_;
+  if (new_reference_) {
+    reference_ = current_;
+    reference_inliers_ = 0;
+    reference_covariance_ = current_covariance_;
+  }
+  previous_ = current_;
+  result.new_reference = new_reference_;
+}
+
+}  // namespace rankslam::slam

@@ -1,0 +1,38 @@
+#pragma once
+
+#include "rankslam/camera/depth_camera.hpp"
+#include "rankslam/hal/messages.hpp"
+#include "rankslam/slam/config.hpp"
+#include "rankslam/slam/frame_images.hpp"
+#include "rankslam/slam/keyframe_store.hpp"
+#include "rankslam/slam/point_map.hpp"
+
+#include <Eigen/Geometry>
+
+#include <random>
+
+namespace rankslam::slam {
+
+/// The coloured point map: each key-frame adds points sampled at random pixels (as the thesis
+/// samples its map), kept with the key-frame so the map can be rebuilt at optimised poses.
+class MapBuilder {
+ public:
+  MapBuilder(const SlamConfig& config, const camera::DepthCameraModel& camera);
+
+  /// Adds the key-frame `frame` at `T_world_cam`, coloured from the colour image or, without
+  /// one, the IR image in `images`; the sampled points also go to `stored` when not null.
+  void add_keyframe(const hal::RgbdFrame& frame, FrameImages& images, const Eigen::Isometry3d& T_world_cam,
+                    StoredKeyframe* stored);
+  /// Rebuilds the map from the stored key-frames at their poses.
+  void rebuild(const KeyframeStore& store);
+
+  [[nodiscard]] const PointMap& map() const { return map_; }
+
+ private:
+  const SlamConfig& config_;
+  const camera::DepthCameraModel& camera_;
+  PointMap map_;
+  std::mt19937 sampler_;
+};
+
+}  // namespace rankslam::slam
