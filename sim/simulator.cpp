@@ -131,6 +131,7 @@ std::string calibration_yaml(const SceneModel& scene) {
   const hal::Calibration& c = scene.calibration;
   std::string text = "# rankslam recording calibration: simulated scene '" + scene.name + "'\n";
   text += "depth_scale: " + number(c.depth_scale) + "  # raw depth units per metre\n";
+  text += "depth_noise_per_m: " + number(c.depth_noise_per_m) + "  # a in the axial depth noise a*z^2\n";
   text += "cameras:\n";
   text += camera_yaml("rgb", c.rgb, "colour camera; depth and IR images are registered to it");
   if (c.fisheye) {

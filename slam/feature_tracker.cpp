@@ -17,7 +17,7 @@ using enum StageTimes::Stage;
 IcpSettings icp_settings(const SlamConfig& config) {
   IcpSettings settings;
   settings.mode = config.icp_mode;
-  settings.max_depth_m = config.icp_max_depth_m;
+  settings.max_depth_m = config.max_depth_m;
   settings.voxel_m = config.icp_voxel_m;
   settings.pixel_stride = config.icp_pixel_stride;
   settings.max_correspondence_m = config.icp_max_correspondence_m;
@@ -54,7 +54,7 @@ FeatureTracker::FeatureTracker(const TrackerParts& parts, bool fused)
   }
   bridge_.reserve(capacity);
   if (!fused_) return;
-  if (const std::string error = parts_.geometric.configure(parts.camera, config_.geometry, {}, &parts_.team);
+  if (const std::string error = parts_.geometric.configure(parts.camera, config_.geometric_frontend(), {}, &parts_.team);
       !error.empty()) {
     throw std::invalid_argument(error);
   }

@@ -44,7 +44,7 @@ OrbFrontend::OrbFrontend(const SlamConfig& config, const camera::DepthCameraMode
     : camera_(camera),
       min_depth_m_(static_cast<float>(config.min_depth_m)),
       max_depth_m_(static_cast<float>(config.max_depth_m)),
-      depth_noise_per_m_(static_cast<float>(config.depth_noise_per_m)),
+      depth_noise_per_m_(static_cast<float>(camera.depth_noise_per_m() + config.keypoint_depth_noise_per_m)),
       keypoint_sigma_px_(static_cast<float>(config.keypoint_sigma_px)),
       scale_factor_(static_cast<float>(config.orb_scale_factor)),
       extractor_(extractor_settings(config, camera, fast_threshold)) {

@@ -19,7 +19,7 @@ KeyframeStore make_keyframe_store(const SlamConfig& config) {
 
 SlamLoop::SlamLoop(const SlamConfig& config, const hal::Calibration& calibration)
     : config_(config),
-      camera_(calibration.rgb, calibration.depth_scale),
+      camera_(calibration),
       images_(camera_.width(), camera_.height(), config_.ir_switch_brightness),
       map_(config_, camera_),
       registrar_(config_, camera_, robust_estimator(config_), calibration.rgb.T_base_cam,

@@ -49,6 +49,7 @@ std::string calibration_yaml(const hal::Calibration& calibration, const std::str
   std::string text = "# rankslam recording calibration: " + comment + "\n";
   text += "# source: " + calibration.source + "\n";
   text += "depth_scale: " + number(calibration.depth_scale) + "  # raw depth units per metre\n";
+  text += "depth_noise_per_m: " + number(calibration.depth_noise_per_m) + "  # a in the axial depth noise a*z^2\n";
   text += "cameras:\n";
   text += camera_yaml("rgb", calibration.rgb);
   if (calibration.fisheye) text += camera_yaml("fisheye", *calibration.fisheye);

@@ -251,6 +251,15 @@ std::string load_calibration_yaml(const fs::path& path, hal::Calibration& calibr
     }
   }
   if (!(calibration.depth_scale > 0.0)) return where + "depth_scale must be positive";
+  if (root["depth_noise_per_m"]) {
+    if (auto error = read_field(root, "depth_noise_per_m", "calibration", calibration.depth_noise_per_m);
+        !error.empty()) {
+      return where + "depth_noise_per_m is not a number";
+    }
+  }
+  if (!(calibration.depth_noise_per_m >= 0.0 && calibration.depth_noise_per_m <= 0.1)) {
+    return where + "depth_noise_per_m must lie in 0 .. 0.1";
+  }
   const YAML::Node cameras = root["cameras"];
   if (!cameras || !cameras["rgb"]) return where + "cameras.rgb is missing";
   if (auto error = read_camera(cameras["rgb"], "cameras.rgb", calibration.rgb); !error.empty()) return where + error;

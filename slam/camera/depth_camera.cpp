@@ -4,11 +4,13 @@
 
 namespace rankslam::camera {
 
-DepthCameraModel::DepthCameraModel(const hal::CameraCalibration& calibration, double depth_scale)
+DepthCameraModel::DepthCameraModel(const hal::CameraCalibration& calibration, double depth_scale,
+                                   double depth_noise_per_m)
     : calibration_(calibration),
       width_(calibration.width),
       height_(calibration.height),
       depth_scale_(depth_scale),
+      depth_noise_per_m_(depth_noise_per_m),
       metres_per_unit_(static_cast<float>(1.0 / depth_scale)) {
   const std::size_t count = static_cast<std::size_t>(width_) * static_cast<std::size_t>(height_);
   rays_.resize(count);

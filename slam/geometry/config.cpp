@@ -19,8 +19,10 @@ std::string_view GeometryConfig::validate() const {
     }
   });
   if (!bad.empty()) return bad;
-  if (min_depth_m >= max_depth_m) return "min_depth_m";
-  if (icp_depth_limit_m() <= min_depth_m) return "icp_pass_through_margin_sigmas";
+  if (!std::isfinite(max_depth_m)) return "max_depth_m";
+  if (!(min_depth_m >= 0.0 && min_depth_m < max_depth_m)) return "min_depth_m";
+  if (msse_hypotheses < 10) return "msse_hypotheses";
+  if (seed < 0) return "seed";
   if (min_voxel_leaf_m > max_voxel_leaf_m) return "min_voxel_leaf_m";
   switch (keypoint_method) {
     case KeypointMethod::kIs3d:

@@ -93,6 +93,9 @@ std::string GeometricFrontend::configure(const camera::DepthCameraModel& camera,
   if (capacities.max_sampled_points < 3) {
     return "geometry: capacities.max_sampled_points must be at least 3";
   }
+  if (config.icp_depth_limit_m(camera.depth_noise_per_m()) <= config.min_depth_m) {
+    return "geometry config: icp_pass_through_margin_sigmas leaves the ICP no depth for this camera's noise";
+  }
   config_ = config;
   capacities_ = capacities;
   camera_ = camera;
@@ -230,7 +233,7 @@ GeometryStatus GeometricFrontend::extract(const cv::Mat& depth, KeypointMethod m
 
   // SHOT over the sampled cloud.
   if (!support_grid_built) return GeometryStatus::kCapacityExceeded;
-  const auto a = static_cast<float>(config_.depth_noise_per_m);
+  const auto a = static_cast<float>(camera_.depth_noise_per_m());
   const auto lateral = static_cast<float>(config_.lateral_sigma_m);
   // Each keypoint's descriptor goes to its own slot, on whichever thread; the described ones are
   // then packed in keypoint order, as one thread would have written them.
@@ -379,9 +382,9 @@ FrameRegistration GeometricFrontend::register_frames(const GeometricFeatures& pr
                           std::max(previous.voxel_leaf_m, current.voxel_leaf_m);
   coarse.min_inlier_fraction = config_.icp_min_inlier_fraction;
   coarse.max_curvature = static_cast<float>(config_.icp_max_curvature);
-  coarse.max_depth_m = static_cast<float>(config_.icp_depth_limit_m());
+  coarse.max_depth_m = static_cast<float>(config_.icp_depth_limit_m(camera_.depth_noise_per_m()));
   if (config_.per_point_noise != 0) {
-    coarse.depth_noise_per_m = static_cast<float>(config_.depth_noise_per_m);
+    coarse.depth_noise_per_m = static_cast<float>(camera_.depth_noise_per_m());
     coarse.noise_floor_m = static_cast<float>(config_.lateral_sigma_m);
   }
   coarse.prior = prior;  // the fine stage copies it

@@ -71,19 +71,14 @@ TEST(GeometryConfig, ValidateChecksConsistency) {
   config = GeometryConfig{};
   config.max_depth_m = std::numeric_limits<double>::quiet_NaN();
   EXPECT_EQ(config.validate(), "max_depth_m");
-  // A pass-through margin that leaves the ICP no depth at all.
-  config = GeometryConfig{};
-  config.depth_noise_per_m = 0.05;
-  config.icp_pass_through_margin_sigmas = 5.0;
-  EXPECT_EQ(config.validate(), "icp_pass_through_margin_sigmas");
 }
 
 TEST(GeometryConfig, IcpDepthLimitIsThePassThroughLessItsMarginInDepthNoise) {
   GeometryConfig config;
   // 4 m less 2 σ at 4 m (σ = 1.425e-3 · 16 = 22.8 mm).
-  EXPECT_NEAR(config.icp_depth_limit_m(), 4.0 - 2.0 * 0.0228, 1e-9);
+  EXPECT_NEAR(config.icp_depth_limit_m(1.425e-3), 4.0 - 2.0 * 0.0228, 1e-9);
   config.icp_pass_through_margin_sigmas = 0.0;
-  EXPECT_DOUBLE_EQ(config.icp_depth_limit_m(), config.max_depth_m);
+  EXPECT_DOUBLE_EQ(config.icp_depth_limit_m(1.425e-3), config.max_depth_m);
 }
 
 }  // namespace

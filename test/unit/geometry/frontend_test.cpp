@@ -192,6 +192,12 @@ TEST_F(FrontendTest, ConfigureNamesBadSettings) {
   capacities.max_keypoints = 10;
   EXPECT_NE(frontend.configure(camera_, GeometryConfig{}, capacities).find("max_keypoints"), std::string::npos);
   EXPECT_FALSE(frontend.configured());
+  // A sensor so noisy that the ICP's pass-through margin (5 σ at 4 m) leaves it no depth.
+  GeometryConfig margin;
+  margin.icp_pass_through_margin_sigmas = 5.0;
+  const camera::DepthCameraModel noisy(testing::test_calibration(), 5000.0, 0.05);
+  EXPECT_NE(frontend.configure(noisy, margin).find("icp_pass_through_margin_sigmas"), std::string::npos);
+  EXPECT_EQ(frontend.configure(camera_, margin), "");  // the Kinect's noise leaves 3.5 m
 }
 
 }  // namespace

@@ -72,6 +72,17 @@ TEST(Recording, CalibrationErrorsNameTheField) {
 
   std::ofstream(root / "calibration.yaml") << "cameras:\n  rgb:\n    model: orthographic\n";
   EXPECT_NE(open_recording(root, recording).find("cameras.rgb.model"), std::string::npos);
+
+  const std::string camera = "cameras:\n  rgb:\n    model: pinhole\n    width: 64\n    height: 48\n"
+                             "    intrinsics: [50.0, 50.0, 32.0, 24.0]\n";
+  std::ofstream(root / "calibration.yaml") << "depth_noise_per_m: -0.001\n" << camera;
+  EXPECT_NE(open_recording(root, recording).find("depth_noise_per_m"), std::string::npos);
+  std::ofstream(root / "calibration.yaml") << "depth_noise_per_m: 0.002\n" << camera;
+  ASSERT_EQ(open_recording(root, recording), "");
+  EXPECT_DOUBLE_EQ(recording.calibration.depth_noise_per_m, 0.002);
+  std::ofstream(root / "calibration.yaml") << camera;
+  ASSERT_EQ(open_recording(root, recording), "");
+  EXPECT_DOUBLE_EQ(recording.calibration.depth_noise_per_m, 1.425e-3);  // the Kinect v1's
 }
 
 TEST(Recording, MalformedListLineIsNamedWithFileAndLine) {

@@ -43,6 +43,9 @@ struct Calibration {
   std::string source;
   /// Raw depth image units per metre (TUM and Kinect: 5000).
   double depth_scale = 5000.0;
+  /// a in the depth sensor's axial noise σ_z = a·z² (Kinect v1: 1.425e-3, Khoshelham & Elberink
+  /// 2012); every part that weighs depth reads it from here.
+  double depth_noise_per_m = 1.425e-3;
   /// Colour camera; depth and IR images are registered to it.
   CameraCalibration rgb;
   std::optional<CameraCalibration> fisheye;

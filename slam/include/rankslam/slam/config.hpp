@@ -73,9 +73,10 @@ struct SlamConfig {
   int max_hamming_distance = 64;
   double min_depth_m = 0.3;
   double max_depth_m = 4.0;
-  // Keypoint depth error sigma_z = a*z^2: the Kinect's plane noise (1.425e-3) plus colour-depth
-  // registration and timing errors at corners, which also grow with z^2 (docs/results.md §5).
-  double depth_noise_per_m = 5e-3;
+  // A keypoint's depth error beyond the sensor's (calibration depth_noise_per_m): colour-depth
+  // registration and timing errors at corners, which also grow with z^2; the two add to 5e-3 for
+  // the Kinect (docs/results.md §5).
+  double keypoint_depth_noise_per_m = 3.575e-3;
   double keypoint_sigma_px = 0.5;
   // Colour camera readout time: under fast rotation keypoints move to the frame's mid-exposure
   // pose; 15 ms fits fr1's Kinect, 0 a global shutter (docs/results.md §5).
@@ -115,7 +116,6 @@ struct SlamConfig {
   int icp_max_iterations = 20;
   double icp_max_correspondence_m = 0.05;
   double icp_voxel_m = 0.02;
-  double icp_max_depth_m = 4.0;
   int icp_pixel_stride = 2;
   int icp_max_source_points = 4000;
   double icp_max_correction_m = 0.02;
@@ -201,8 +201,20 @@ struct SlamConfig {
   double graph_planar_sigma_deg = 0.2;
   int seed = 1;
 
-  /// The depth-only front-end of the geometric mode (docs/methods.md §3–§5); its own parameter list.
+  /// The depth-only front-end of the geometric and fused modes (docs/methods.md §3–§5); its own
+  /// parameter list, without the depth range, MSSE hypotheses and seed every part shares.
   geometry::GeometryConfig geometry;
+
+  /// The geometric front-end's configuration: `geometry` with the loop's depth range, MSSE
+  /// hypotheses and seed.
+  [[nodiscard]] geometry::GeometryConfig geometric_frontend() const {
+    geometry::GeometryConfig frontend = geometry;
+    frontend.min_depth_m = min_depth_m;
+    frontend.max_depth_m = max_depth_m;
+    frontend.msse_hypotheses = msse_hypotheses;
+    frontend.seed = seed;
+    return frontend;
+  }
 
   /// Calls visit(name, field, min, max, unit, doc) for every numeric parameter.
   template <typename Visitor>
@@ -212,17 +224,17 @@ struct SlamConfig {
     visit("orb_levels", orb_levels, 1, 16, "", "ORB pyramid levels");
     visit("orb_fast_threshold", orb_fast_threshold, 1, 100, "", "FAST corner threshold");
     visit("max_hamming_distance", max_hamming_distance, 1, 256, "bit", "largest descriptor distance of a match");
-    visit("min_depth_m", min_depth_m, 0.0, 10.0, "m", "nearest depth a feature may have");
-    visit("max_depth_m", max_depth_m, 0.1, 20.0, "m", "farthest depth a feature may have");
-    visit("depth_noise_per_m", depth_noise_per_m, 0.0, 0.1, "1/m",
-          "a in the keypoint depth error model sigma_z = a*z^2 (Kinect random noise alone: 1.425e-3)");
+    visit("min_depth_m", min_depth_m, 0.0, 10.0, "m", "nearest depth any part uses");
+    visit("max_depth_m", max_depth_m, 0.1, 20.0, "m", "farthest depth any part uses (features, ICP, map)");
+    visit("keypoint_depth_noise_per_m", keypoint_depth_noise_per_m, 0.0, 0.1, "1/m",
+          "b in a keypoint's depth error (a+b)*z^2 on top of the sensor's a (calibration depth_noise_per_m)");
     visit("keypoint_sigma_px", keypoint_sigma_px, 0.01, 10.0, "px",
           "keypoint localisation error at the finest pyramid level");
     visit("rolling_shutter_readout_ms", rolling_shutter_readout_ms, 0.0, 100.0, "ms",
           "colour camera readout time, top to bottom row (0: global shutter)");
     visit("ransac_threshold_m", ransac_threshold_m, 0.001, 1.0, "m", "baseline RANSAC inlier threshold");
     visit("ransac_iterations", ransac_iterations, 10, 100000, "", "baseline RANSAC hypotheses");
-    visit("msse_hypotheses", msse_hypotheses, 10, 100000, "", "MSSE minimal-sample hypotheses per registration");
+    visit("msse_hypotheses", msse_hypotheses, 10, 100000, "", "MSSE minimal-sample hypotheses per registration (both feature kinds)");
     visit("msse_min_inlier_fraction", msse_min_inlier_fraction, 0.01, 0.9, "",
           "MSSE kappa: least inlier fraction assumed among the matches");
     visit("msse_refine_iterations", msse_refine_iterations, 0, 100, "",
@@ -253,7 +265,6 @@ struct SlamConfig {
     visit("icp_max_iterations", icp_max_iterations, 1, 100, "", "ICP iterations at most");
     visit("icp_max_correspondence_m", icp_max_correspondence_m, 0.001, 1.0, "m", "ICP pairs farther apart are dropped");
     visit("icp_voxel_m", icp_voxel_m, 0.001, 0.5, "m", "voxel edge of the ICP cloud filter");
-    visit("icp_max_depth_m", icp_max_depth_m, 0.1, 20.0, "m", "farther depth is left out of the ICP cloud");
     visit("icp_pixel_stride", icp_pixel_stride, 1, 16, "px", "every n-th pixel in u and v feeds the ICP voxel grid");
     visit("icp_max_source_points", icp_max_source_points, 100, 307200, "", "source points used per ICP iteration");
     visit("icp_max_correction_m", icp_max_correction_m, 0.0, 1.0, "m",

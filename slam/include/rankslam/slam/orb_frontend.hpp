@@ -20,7 +20,7 @@ struct PhotometricFeatures {
   cv::Mat descriptors;  ///< CV_8UC1, one 32-byte row per keypoint: a view of descriptor_storage.
   std::vector<Eigen::Vector3f> points_cam;
   /// Predicted standard deviation of each point's position, metres: depth error along the ray
-  /// (a·z², SlamConfig::depth_noise_per_m) combined with the keypoint's localisation error, which
+  /// ((a+b)·z²: the calibration's depth_noise_per_m and SlamConfig::keypoint_depth_noise_per_m) combined with the keypoint's localisation error, which
   /// grows with its pyramid level.
   std::vector<float> sigma_m;
   /// The image the features were detected on: descriptors of different images never match.

@@ -15,11 +15,17 @@ namespace rankslam::camera {
 class DepthCameraModel {
  public:
   DepthCameraModel() = default;
-  DepthCameraModel(const hal::CameraCalibration& calibration, double depth_scale);
+  DepthCameraModel(const hal::CameraCalibration& calibration, double depth_scale,
+                   double depth_noise_per_m = hal::Calibration{}.depth_noise_per_m);
+  /// The colour camera of `calibration` with its registered depth.
+  explicit DepthCameraModel(const hal::Calibration& calibration)
+      : DepthCameraModel(calibration.rgb, calibration.depth_scale, calibration.depth_noise_per_m) {}
 
   [[nodiscard]] int width() const { return width_; }
   [[nodiscard]] int height() const { return height_; }
   [[nodiscard]] double depth_scale() const { return depth_scale_; }
+  /// a in the depth sensor's axial noise σ_z = a·z² (hal::Calibration::depth_noise_per_m).
+  [[nodiscard]] double depth_noise_per_m() const { return depth_noise_per_m_; }
   [[nodiscard]] const hal::CameraCalibration& calibration() const { return calibration_; }
 
   /// Normalised undistorted ray (x/z, y/z) through pixel (u, v), both integers in range.
@@ -49,6 +55,7 @@ class DepthCameraModel {
   int width_ = 0;
   int height_ = 0;
   double depth_scale_ = 5000.0;
+  double depth_noise_per_m_ = 0.0;
   float metres_per_unit_ = 1.0F / 5000.0F;
   std::vector<Eigen::Vector2f> rays_;
 };

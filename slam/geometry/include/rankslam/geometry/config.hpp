@@ -72,10 +72,9 @@ struct GeometryConfig {
   RosSelection ros_selection = RosSelection::kMostSalient;
 
   // --- Pre-processing (§3.1–3.3) ---------------------------------------------------------------
-  /// Pass-through: points farther than this are dropped (thesis §4.4.1: 4 m was the most
-  /// accurate of 2–6 m).
+  /// Pass-through: points farther than this are dropped, nearer than min_depth_m too. In the SLAM
+  /// loop these, msse_hypotheses and seed are the loop's own (SlamConfig::geometric_frontend).
   double max_depth_m = 4.0;
-  /// Points nearer than this are dropped (0 keeps every valid pixel).
   double min_depth_m = 0.0;
   /// Pixel stride of the cloud-resolution estimate φ (mean distance to the nearest of 8 image
   /// neighbours). Ours: 4 measures close to the full cloud's mean (docs/results.md §5).
@@ -134,11 +133,10 @@ struct GeometryConfig {
   int msse_hypotheses = 1000;
   /// MSSE κ for the rigid fit over the mutual matches (see robust::MsseConfig).
   double msse_min_inlier_fraction = 0.1;
-  /// 1: rank the MSSE residuals in units of each match's predicted noise (Kinect σ_z = a·z²);
+  /// 1: rank the MSSE residuals in units of each match's predicted noise (the calibration's
+  /// σ_z = a·z²);
   /// 0: plain metres.
   int per_point_noise = 1;
-  /// a in σ_z = a·z² (Khoshelham & Elberink 2012, Kinect v1).
-  double depth_noise_per_m = 1.425e-3;
   /// Lateral noise of one keypoint per axis; covers the voxel-centroid quantisation.
   double lateral_sigma_m = 0.003;
   /// A registration with fewer MSSE inliers is reported as failed.
@@ -186,8 +184,6 @@ struct GeometryConfig {
   /// Calls visit(name, field, min, max, unit, doc) for every numeric parameter.
   template <class V>
   void visit_parameters(V&& visit) {
-    visit("max_depth_m", max_depth_m, 0.1, 20.0, "m", "pass-through: farther points are dropped");
-    visit("min_depth_m", min_depth_m, 0.0, 10.0, "m", "nearer points are dropped");
     visit("resolution_pixel_stride", resolution_pixel_stride, 1, 64, "px",
           "pixel stride of the cloud-resolution (mean nearest-neighbour distance) estimate");
     visit("voxel_leaf_factor", voxel_leaf_factor, 1.0, 100.0, "",
@@ -221,13 +217,10 @@ struct GeometryConfig {
     visit("shot_radius_m", shot_radius_m, 0.01, 2.0, "m", "SHOT support radius");
     visit("shot_min_neighbours", shot_min_neighbours, 2, 10000, "",
           "fewest support points of a SHOT descriptor");
-    visit("msse_hypotheses", msse_hypotheses, 10, 100000, "", "MSSE minimal-sample hypotheses");
     visit("msse_min_inlier_fraction", msse_min_inlier_fraction, 0.01, 0.9, "",
           "MSSE kappa: assumed least inlier fraction of the matches");
     visit("per_point_noise", per_point_noise, 0, 1, "",
           "rank MSSE residuals in units of each match's predicted noise");
-    visit("depth_noise_per_m", depth_noise_per_m, 0.0, 0.1, "1/m",
-          "a in the depth noise model sigma_z = a*z^2 (Kinect: 1.425e-3)");
     visit("lateral_sigma_m", lateral_sigma_m, 0.0, 1.0, "m", "lateral noise of a keypoint per axis");
     visit("min_inliers", min_inliers, 3, 100000, "", "fewer MSSE inliers mark a registration failed");
     visit("motion_gate_translation_m", motion_gate_translation_m, 0.0, 100.0, "m",
@@ -252,11 +245,11 @@ struct GeometryConfig {
           "data-to-prior information ratio at which an ICP prior's hold on a direction halves (0: whole prior)");
     visit("icp_pass_through_margin_sigmas", icp_pass_through_margin_sigmas, 0.0, 10.0, "",
           "ICP leaves out points within this many depth-noise sigmas of the pass-through (0: none)");
-    visit("seed", seed, 0, 2147483647, "", "random seed: equal seeds give equal results");
   }
 
-  /// The depth beyond which the ICP takes no point: max_depth_m less the pass-through margin.
-  [[nodiscard]] double icp_depth_limit_m() const {
+  /// The depth beyond which the ICP takes no point: max_depth_m less the pass-through margin, for
+  /// a sensor of axial noise depth_noise_per_m·z².
+  [[nodiscard]] double icp_depth_limit_m(double depth_noise_per_m) const {
     return max_depth_m - icp_pass_through_margin_sigmas * depth_noise_per_m * max_depth_m * max_depth_m;
   }
 
