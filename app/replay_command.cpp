@@ -11,6 +11,7 @@
 #include "rankslam/eval/trajectory.hpp"
 #include "rankslam/hal/atomic_file.hpp"
 #include "rankslam/replay/replay_camera.hpp"
+#include "rankslam/replay/replay_can_bus.hpp"
 #include "rankslam/slam/slam_loop.hpp"
 
 #include <algorithm>
@@ -215,7 +216,12 @@ int run_replay(const ReplayArgs& args) {
               << "\n"
               << (wheels ? describe_wheel_config(wheel_config) : std::string());
   }
-  std::size_t next_can_frame = 0;
+  // The recording's CAN frames reach the odometry through a bus, as a live base's do.
+  replay::ReplayCanBus can_bus(recording.can_frames, {recording.calibration.wheels.value_or(hal::WheelGeometry{}).can_id});
+  if (auto error = can_bus.open(); !error.empty()) {
+    std::cerr << "error: " << recording.root.string() << "/can.log: " << error << "\n";
+    return kExitInput;
+  }
 
   slam::SlamLoop loop(config, recording.calibration);
   // Offline: each pose-graph solve is waited for, so a replay gives the same result every time.
@@ -256,14 +262,14 @@ int run_replay(const ReplayArgs& args) {
     if (status != hal::ReadStatus::kOk) continue;
     const nav::MotionPrior* prior = nullptr;
     if (wheels) {
-      // The wheel frames in stamp order up to the camera frame's stamp and the first one after
+      // The bus releases the wheel frames up to the camera frame's stamp and the first one after
       // it: the motion up to the stamp is known once the next wheel frame is in (at 100 Hz, at
       // most 10 ms later; a live camera frame takes longer than that to arrive).
       const std::int64_t stamp_ns = nav::recording_stamp_ns(frame.stamp_s);
-      while (next_can_frame < recording.can_frames.size()) {
-        const hal::CanFrame& can_frame = recording.can_frames[next_can_frame++];
-        const nav::WheelFrameResult fed = wheels->update(can_frame);
-        if (can_frame.stamp_ns >= stamp_ns && fed != nav::WheelFrameResult::kNotWheelFrame) break;
+      can_bus.release_through(stamp_ns);
+      hal::CanFrame can_frame;
+      while (can_bus.receive(can_frame, std::chrono::milliseconds(0)) == hal::ReadStatus::kOk) {
+        (void)wheels->update(can_frame);
       }
       prior = wheels->prior_for(stamp_ns);
     }
