@@ -10,8 +10,7 @@
 
 #include "rankslam/eval/trajectory.hpp"
 #include "rankslam/hal/atomic_file.hpp"
-#include "rankslam/nav/pose_broadcaster.hpp"
-#include "rankslam/nav/wheel_frame.hpp"
+#include "rankslam/nav/pose_output.hpp"
 #include "rankslam/openni2/openni2_camera.hpp"
 #include "rankslam/replay/replay_camera.hpp"
 #include "rankslam/slam/slam_loop.hpp"
@@ -57,143 +56,6 @@ class StopSignals {
   struct sigaction old_int_ {};
   struct sigaction old_term_ {};
 };
-
-/// What the SLAM thread hands to the output thread: the latest sample and the camera state.
-struct Mailbox {
-  std::mutex mutex;
-  std::optional<nav::PoseSample> sample;
-  /// Map corrections of the samples since the output last took one: a sample that is
-  /// overwritten before the output sees it must not take its correction with it.
-  Eigen::Isometry3d pending_correction = Eigen::Isometry3d::Identity();
-  /// The sample's camera stamp on the wheel odometry's clock (none without wheels).
-  std::optional<std::int64_t> wheel_stamp_ns;
-  std::uint64_t sample_count = 0;
-  bool camera_fault = false;
-  bool end_of_stream = false;
-};
-
-/// Wheel frames received from the bus (the base controller's, or the replayed ones).
-struct WheelCounters {
-  std::uint64_t frames = 0;
-  std::uint64_t malformed = 0;
-  std::uint64_t counter_gaps = 0;  ///< rolling-counter jumps: frames lost somewhere
-  std::uint64_t unmatched = 0;     ///< replay: received frames that match no played frame
-};
-
-/// The wheel odometry of a run: fed by the output thread from its CAN socket, read by the SLAM
-/// thread for each camera frame's prior, under `mutex`.
-struct LiveWheels {
-  std::mutex mutex;
-  std::condition_variable advanced;  ///< a wheel frame was integrated
-  std::optional<nav::WheelPrior> prior;   ///< absent when the calibration has no wheels section
-  std::int64_t newest_arrival_ns = 0;  ///< monotonic time the newest wheel frame arrived
-  bool receiving = false;              ///< the output thread's bus is open: frames sent now reach it
-  /// Replay through the bus: the wheel frames played from the recording, whose stamps the
-  /// received frames take (matched by identifier and data, in order), so that the odometry runs
-  /// on the recording's clock as the replay camera's frames do. Empty for a live base.
-  const std::vector<hal::CanFrame>* recorded = nullptr;
-  std::size_t next_recorded = 0;
-};
-
-/// The recording stamp of a played wheel frame: the next recorded frame equal to it, looked for
-/// a few frames ahead (the bus may have dropped some). False when none matches.
-bool recorded_stamp(LiveWheels& wheels, const hal::CanFrame& frame, std::int64_t& stamp_ns) {
-  constexpr std::size_t kLookAhead = 16;
-  const std::vector<hal::CanFrame>& recorded = *wheels.recorded;
-  for (std::size_t i = wheels.next_recorded; i < recorded.size() && i < wheels.next_recorded + kLookAhead; ++i) {
-    const hal::CanFrame& candidate = recorded[i];
-    if (candidate.id == frame.id && candidate.length == frame.length && candidate.data == frame.data) {
-      stamp_ns = candidate.stamp_ns;
-      wheels.next_recorded = i + 1;
-      return true;
-    }
-  }
-  return false;
-}
-
-struct OutputResult {
-  nav::PoseOutputCounters pose;
-  WheelCounters wheels;
-  hal::CanBusStatistics bus;
-};
-
-/// The output thread: pose cycles and heartbeats at their rates, wheel frames in. It owns its
-/// CAN socket; SLAM never waits for it.
-void output_thread(const RobotConfig& config, unsigned wheel_can_id, Mailbox& mailbox, LiveWheels& wheels,
-                   const std::atomic<bool>& stop, OutputResult& result) {
-  socketcan::SocketCanOptions options;
-  options.interface_name = config.can_interface;
-  options.filters.push_back({wheel_can_id, 0x7FF, false});
-  socketcan::SocketCanBus bus(options);
-  // open() was checked by the caller on an identical bus; a failure here is counted as faults.
-  (void)bus.open();
-  {
-    std::lock_guard lock(wheels.mutex);
-    wheels.receiving = true;
-  }
-  wheels.advanced.notify_all();
-  hal::MonotonicClock clock;
-  nav::PoseBroadcaster broadcaster(config.output, bus, clock);
-  std::uint64_t seen = 0;
-  std::optional<std::int64_t> sample_wheel_stamp_ns;
-  std::optional<std::uint8_t> last_counter;
-  hal::CanFrame frame;
-  while (!stop.load()) {
-    {
-      std::lock_guard lock(mailbox.mutex);
-      if (mailbox.sample_count != seen && mailbox.sample) {
-        seen = mailbox.sample_count;
-        nav::PoseSample sample = *mailbox.sample;
-        sample.map_correction = mailbox.pending_correction;
-        mailbox.pending_correction.setIdentity();
-        sample_wheel_stamp_ns = mailbox.wheel_stamp_ns;
-        broadcaster.update(sample);
-      }
-      broadcaster.set_camera_state(mailbox.camera_fault, mailbox.end_of_stream);
-    }
-    if (sample_wheel_stamp_ns) {
-      // The pose cycles move the latest SLAM pose on by the wheels since its camera frame.
-      std::lock_guard lock(wheels.mutex);
-      nav::RelativeMotion motion;
-      if (wheels.prior && wheels.prior->odometry().relative_motion(
-                              *sample_wheel_stamp_ns, wheels.prior->odometry().newest_stamp_ns(), motion) ==
-                              nav::RelativeMotionStatus::kOk) {
-        broadcaster.set_wheel_motion(nav::to_isometry3d(motion.T_a_b));
-      }
-    }
-    const std::int64_t wait_ns = broadcaster.poll();
-    // Wait for the next due frame inside receive(), which also collects wheel frames.
-    const auto wait = std::chrono::milliseconds(std::min<std::int64_t>(wait_ns / 1'000'000, 20));
-    const hal::ReadStatus status = bus.receive(frame, wait);
-    if (status == hal::ReadStatus::kOk) {
-      if (const auto ticks = nav::decode_wheel_ticks(frame)) {
-        ++result.wheels.frames;
-        if (last_counter && static_cast<std::uint8_t>(*last_counter + 1U) != ticks->rolling_counter) {
-          ++result.wheels.counter_gaps;
-        }
-        last_counter = ticks->rolling_counter;
-        {
-          std::lock_guard lock(wheels.mutex);
-          hal::CanFrame stamped = frame;
-          if (wheels.prior && (wheels.recorded == nullptr || recorded_stamp(wheels, frame, stamped.stamp_ns))) {
-            (void)wheels.prior->update(stamped);
-            wheels.newest_arrival_ns = clock.now_ns();
-          } else if (wheels.prior) {
-            ++result.wheels.unmatched;
-          }
-        }
-        wheels.advanced.notify_all();
-      } else {
-        ++result.wheels.malformed;
-      }
-    } else if (status == hal::ReadStatus::kFault) {
-      std::this_thread::sleep_for(wait);  // the bus reopens on its own; do not spin meanwhile
-    }
-  }
-  result.pose = broadcaster.counters();
-  result.bus = bus.statistics();
-  bus.close();
-}
 
 /// Plays a recording's wheel frames onto the bus on their recorded timing (scaled by `rate`).
 class WheelPlayer {
@@ -372,15 +234,14 @@ int run_live(const RunArgs& args) {
   int failed_frames = 0;
 
   const StopSignals signals;
-  Mailbox mailbox;
+  nav::PoseMailbox mailbox;
   std::atomic<bool> stop_output{false};
-  OutputResult output;
   // Wheel odometry from the bus as the motion prior: a live camera's stamps and the bus's are
   // both CLOCK_MONOTONIC; a replayed recording's wheel frames are played onto the bus and take
   // their recorded stamps back, the replay camera's clock. A replay without played frames has no
   // wheel clock in common with its camera: no prior.
   const bool play_wheels = replay_camera != nullptr && robot.play_wheel_frames && !recording.can_frames.empty();
-  LiveWheels wheels;
+  nav::LiveWheels wheels;
   std::string wheels_off_reason;
   if (!calibration.wheels) {
     wheels_off_reason = "the calibration has no wheels section";
@@ -391,24 +252,40 @@ int run_live(const RunArgs& args) {
       std::cerr << "error: wheel odometry: " << error << "\n";
       return kExitInput;
     }
-    wheels.prior.emplace(wheel_config, *calibration.wheels, T_base_cam);
-    if (play_wheels) wheels.recorded = &recording.can_frames;
+    wheels.enable(wheel_config, *calibration.wheels, T_base_cam, play_wheels ? &recording.can_frames : nullptr);
   }
-  std::cout << "wheels: " << (wheels.prior ? "CAN frames from " + robot.can_interface + " as the motion prior"
-                                           : "not used (" + wheels_off_reason + ")")
+  std::cout << "wheels: " << (wheels.enabled() ? "CAN frames from " + robot.can_interface + " as the motion prior"
+                                               : "not used (" + wheels_off_reason + ")")
             << "\n"
-            << (wheels.prior ? describe_wheel_config(wheel_config) : std::string()) << std::flush;
-  std::thread sender([&] { output_thread(robot, wheel_can_id, mailbox, wheels, stop_output, output); });
+            << (wheels.enabled() ? describe_wheel_config(wheel_config) : std::string()) << std::flush;
+  nav::PoseOutputOptions output_options;
+  output_options.broadcast = robot.output;
+  output_options.wheel_can_id = wheel_can_id;
+  nav::PoseOutputCounters pose_counters;
+  nav::WheelInputCounters wheel_counters;
+  hal::CanBusStatistics bus_statistics;
+  std::thread sender([&] {
+    socketcan::SocketCanOptions options;
+    options.interface_name = robot.can_interface;
+    options.filters.push_back({wheel_can_id, 0x7FF, false});
+    socketcan::SocketCanBus bus(options);
+    // open() was checked above on an identical bus; a failure here is counted as faults.
+    (void)bus.open();
+    const hal::MonotonicClock clock;
+    nav::PoseOutput output(output_options, bus, clock, mailbox, wheels);
+    output.run(stop_output);
+    pose_counters = output.pose_counters();
+    wheel_counters = output.wheel_counters();
+    bus_statistics = bus.statistics();
+    bus.close();
+  });
 
   std::optional<WheelPlayer> player;
   if (play_wheels) {
     // A frame played before the output thread's socket is bound never reaches it (the first wheel
     // frame, whose stamp starts the odometry, went missing that way under load).
-    {
-      std::unique_lock lock(wheels.mutex);
-      if (!wheels.advanced.wait_for(lock, std::chrono::seconds(5), [&] { return wheels.receiving; })) {
-        std::cerr << "warning: the CAN receiver did not start within 5 s; early wheel frames may be missed\n";
-      }
+    if (!wheels.wait_receiving(std::chrono::seconds(5))) {
+      std::cerr << "warning: the CAN receiver did not start within 5 s; early wheel frames may be missed\n";
     }
     player.emplace(recording.can_frames, robot.can_interface, robot.replay_rate);
     if (auto error = player->start(); !error.empty()) {
@@ -442,33 +319,28 @@ int run_live(const RunArgs& args) {
     if (status == hal::ReadStatus::kEndOfStream) {
       std::cout << "end of stream after " << trajectory.size() << " frames" << std::endl;
       end_time = std::chrono::steady_clock::now();
-      std::lock_guard lock(mailbox.mutex);
-      mailbox.end_of_stream = true;
+      mailbox.set_end_of_stream();
       continue;
     }
     if (status != hal::ReadStatus::kOk) {
-      std::lock_guard lock(mailbox.mutex);
-      mailbox.camera_fault = status == hal::ReadStatus::kFault;
+      mailbox.set_camera_fault(status == hal::ReadStatus::kFault);
       continue;
     }
     const std::int64_t capture_ns = hal::MonotonicClock{}.now_ns();
     const nav::MotionPrior* frame_prior = nullptr;
     const std::int64_t wheel_stamp_ns = replay_camera != nullptr ? nav::recording_stamp_ns(frame.stamp_s) : frame.stamp_ns;
-    if (wheels.prior) {
-      std::unique_lock lock(wheels.mutex);
+    if (wheels.enabled()) {
       // The motion up to the frame is known once a wheel frame at or after its stamp is in. A live
       // base: wait for it up to three wheel periods, while wheel frames are arriving at all. A
       // played recording: wait while the player plays (a lossless replay camera may run ahead
       // of the recorded timing the wheel frames keep), so that every frame has the prior it has
       // in `replay`.
       const bool playing = player && !player->finished();
-      const auto arriving = [&] { return hal::MonotonicClock{}.now_ns() - wheels.newest_arrival_ns < 200'000'000; };
-      (void)wheels.advanced.wait_for(lock, playing ? std::chrono::milliseconds(1000) : std::chrono::milliseconds(30), [&] {
-        return wheels.prior->odometry().newest_stamp_ns() >= wheel_stamp_ns ||
-               (playing ? player->finished() : !arriving());
-      });
-      if (const nav::MotionPrior* wheel_prior = wheels.prior->prior_for(wheel_stamp_ns)) {
-        prior = *wheel_prior;
+      const auto keep_waiting = [&](std::int64_t newest_arrival_ns) {
+        return playing ? !player->finished() : hal::MonotonicClock{}.now_ns() - newest_arrival_ns < 200'000'000;
+      };
+      if (wheels.prior_for(wheel_stamp_ns, playing ? std::chrono::milliseconds(1000) : std::chrono::milliseconds(30),
+                           keep_waiting, prior)) {
         frame_prior = &prior;
       }
     }
@@ -493,15 +365,10 @@ int run_live(const RunArgs& args) {
     if (result.status != slam::FrameStatus::kFirstFrame && result.features > 0) {
       sample.inlier_percent = static_cast<std::uint8_t>(std::min(100, 100 * result.inliers / result.features));
     }
-    std::lock_guard lock(mailbox.mutex);
-    if (result.graph_applied) {
-      // The correction in base frames: T_map_base = T_base_cam * T_world_cam * T_cam_base.
-      mailbox.pending_correction = T_base_cam * result.map_correction * T_cam_base * mailbox.pending_correction;
-    }
-    mailbox.sample = sample;
-    mailbox.wheel_stamp_ns = wheels.prior ? std::optional<std::int64_t>(wheel_stamp_ns) : std::nullopt;
-    ++mailbox.sample_count;
-    mailbox.camera_fault = false;
+    // The correction in base frames: T_map_base = T_base_cam * T_world_cam * T_cam_base.
+    const Eigen::Isometry3d correction = T_base_cam * result.map_correction * T_cam_base;
+    mailbox.post(sample, result.graph_applied ? &correction : nullptr,
+                 wheels.enabled() ? std::optional<std::int64_t>(wheel_stamp_ns) : std::nullopt);
   }
 
   if (player) player->stop();
@@ -540,32 +407,32 @@ int run_live(const RunArgs& args) {
   json.integer("frames", static_cast<long long>(trajectory.size()));
   json.integer("failed_frames", failed_frames);
   // The sender has stopped: the wheels need no lock any more.
-  write_status_and_wheels(json, status_counts, wheels.prior ? &*wheels.prior : nullptr, loop.wheel_slip_events(),
+  write_status_and_wheels(json, status_counts, wheels.prior(), loop.wheel_slip_events(),
                           wheels_off_reason);
-  if (wheels.prior) json.integer("wheel_frames_unmatched", static_cast<long long>(output.wheels.unmatched));
+  if (wheels.enabled()) json.integer("wheel_frames_unmatched", static_cast<long long>(wheel_counters.unmatched));
   json.integer("skipped_frames", replay_counters.corrupt);
   json.integer("dropped_frames", replay_counters.dropped);
   json.integer("trajectory_overflow", static_cast<long long>(trajectory_overflow));
-  json.integer("pose_cycles", static_cast<long long>(output.pose.pose_cycles));
-  json.integer("lost_cycles", static_cast<long long>(output.pose.lost_cycles));
-  json.integer("heartbeats", static_cast<long long>(output.pose.heartbeats));
-  json.integer("tx_dropped", static_cast<long long>(output.pose.tx_dropped));
-  json.integer("tx_faults", static_cast<long long>(output.pose.tx_faults));
+  json.integer("pose_cycles", static_cast<long long>(pose_counters.pose_cycles));
+  json.integer("lost_cycles", static_cast<long long>(pose_counters.lost_cycles));
+  json.integer("heartbeats", static_cast<long long>(pose_counters.heartbeats));
+  json.integer("tx_dropped", static_cast<long long>(pose_counters.tx_dropped));
+  json.integer("tx_faults", static_cast<long long>(pose_counters.tx_faults));
   json.integer("wheel_frames_played", player ? static_cast<long long>(player->sent()) : 0LL);
-  json.integer("wheel_frames_received", static_cast<long long>(output.wheels.frames));
-  json.integer("wheel_counter_gaps", static_cast<long long>(output.wheels.counter_gaps));
-  json.integer("bus_frames_tx", static_cast<long long>(output.bus.frames_tx));
-  json.integer("bus_error_frames", static_cast<long long>(output.bus.error_frames));
-  json.integer("bus_faults", static_cast<long long>(output.bus.faults));
+  json.integer("wheel_frames_received", static_cast<long long>(wheel_counters.frames));
+  json.integer("wheel_counter_gaps", static_cast<long long>(wheel_counters.counter_gaps));
+  json.integer("bus_frames_tx", static_cast<long long>(bus_statistics.frames_tx));
+  json.integer("bus_error_frames", static_cast<long long>(bus_statistics.error_frames));
+  json.integer("bus_faults", static_cast<long long>(bus_statistics.faults));
   json.boolean("interrupted", interrupted);
   json.end_object();
   report_error(hal::write_file_atomically(out / "report.json", std::string_view(json.str())));
 
   std::printf("frames %zu  failed %d  pose cycles %llu (lost %llu)  heartbeats %llu  wheel frames in %llu%s\n",
-              trajectory.size(), failed_frames, static_cast<unsigned long long>(output.pose.pose_cycles),
-              static_cast<unsigned long long>(output.pose.lost_cycles),
-              static_cast<unsigned long long>(output.pose.heartbeats),
-              static_cast<unsigned long long>(output.wheels.frames), interrupted ? "  (interrupted)" : "");
+              trajectory.size(), failed_frames, static_cast<unsigned long long>(pose_counters.pose_cycles),
+              static_cast<unsigned long long>(pose_counters.lost_cycles),
+              static_cast<unsigned long long>(pose_counters.heartbeats),
+              static_cast<unsigned long long>(wheel_counters.frames), interrupted ? "  (interrupted)" : "");
   std::printf("outputs in %s\n", out.string().c_str());
   return exit_code;
 }
