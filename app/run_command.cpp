@@ -3,11 +3,10 @@
 #include "commands.hpp"
 #include "config_file.hpp"
 #include "exit_codes.hpp"
-#include "json_writer.hpp"
 #include "robot_config.hpp"
-#include "status_counts.hpp"
 #include "rankslam/nav/wheel_prior.hpp"
 
+#include "rankslam/eval/run_report.hpp"
 #include "rankslam/eval/trajectory.hpp"
 #include "rankslam/hal/atomic_file.hpp"
 #include "rankslam/nav/pose_output.hpp"
@@ -135,39 +134,16 @@ int run_live(const RunArgs& args) {
     return kExitInput;
   }
   slam::SlamConfig slam_config;
-  if (auto error = load_slam_config(args.config, slam_config); !error.empty()) {
-    std::cerr << "error: " << error << "\n";
-    return kExitInput;
-  }
   nav::WheelOdometryConfig wheel_config;
-  if (auto error = load_wheel_config(args.config, wheel_config); !error.empty()) {
-    std::cerr << "error: " << error << "\n";
-    return kExitInput;
-  }
-  slam_config.mode = kDefaultMode;
-  if (!args.mode.empty()) {
-    const auto mode = parse_mode(args.mode);
-    if (!mode) {
-      std::cerr << "error: unknown mode '" << args.mode << "' (baseline, photometric, geometric, fused)\n";
-      return kExitUsage;
-    }
-    slam_config.mode = *mode;
-  }
-  if (!mode_implemented(slam_config.mode)) {
-    std::cerr << "error: mode '" << slam::to_string(slam_config.mode) << "' is not implemented yet\n";
-    return kExitNotAvailable;
+  if (const int code = load_pipeline_config(args.config, args.mode, slam_config, wheel_config); code != kExitOk) {
+    return code;
   }
   const fs::path out = args.out.empty() ? robot.output_dir : args.out;
   if (out.empty()) {
     std::cerr << "error: " << args.config.string() << ": no output directory (output.dir or --out)\n";
     return kExitUsage;
   }
-  std::error_code ec;
-  fs::create_directories(out, ec);
-  if (!fs::is_directory(out)) {
-    std::cerr << "error: cannot create output directory " << out << ": " << ec.message() << "\n";
-    return kExitOutput;
-  }
+  if (const int code = make_output_directory(out); code != kExitOk) return code;
 
   // Set-up: everything that may fail or allocate happens here.
   replay::Recording recording;
@@ -293,7 +269,7 @@ int run_live(const RunArgs& args) {
       player.reset();
     }
   }
-  StatusCounts status_counts;
+  eval::StatusCounts status_counts;
   nav::MotionPrior prior;
 
   hal::RgbdFrame frame;
@@ -389,7 +365,7 @@ int run_live(const RunArgs& args) {
   report_error(eval::write_tum_trajectory(out / "trajectory.txt", trajectory));
   report_error(hal::write_file_atomically(out / "map.ply", std::string_view(loop.map().to_ply())));
 
-  JsonWriter json;
+  eval::JsonWriter json;
   json.begin_object();
   json.string("config", args.config.string());
   json.integer("keyframes", loop.keyframes());
@@ -407,7 +383,7 @@ int run_live(const RunArgs& args) {
   json.integer("frames", static_cast<long long>(trajectory.size()));
   json.integer("failed_frames", failed_frames);
   // The sender has stopped: the wheels need no lock any more.
-  write_status_and_wheels(json, status_counts, wheels.prior(), loop.wheel_slip_events(),
+  eval::write_status_and_wheels(json, status_counts, wheels.prior(), loop.wheel_slip_events(),
                           wheels_off_reason);
   if (wheels.enabled()) json.integer("wheel_frames_unmatched", static_cast<long long>(wheel_counters.unmatched));
   json.integer("skipped_frames", replay_counters.corrupt);
