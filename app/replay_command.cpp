@@ -1,6 +1,7 @@
 #include "commands.hpp"
 #include "config_file.hpp"
 #include "exit_codes.hpp"
+#include "frame_pipeline.hpp"
 #include "progress.hpp"
 #include "rankslam/nav/wheel_prior.hpp"
 
@@ -101,28 +102,17 @@ int run_replay(const ReplayArgs& args) {
     std::cerr << "error: " << recording.root.string() << "/can.log: " << error << "\n";
     return kExitInput;
   }
+  std::optional<ReplayedWheels> replayed_wheels;
+  if (wheels) replayed_wheels.emplace(can_bus, *wheels);
 
-  slam::SlamLoop loop(config, recording.calibration);
+  PipelineOptions pipeline_options;
+  pipeline_options.max_frames = camera.frame_count();
+  pipeline_options.recording_clock = true;
   // Offline: each pose-graph solve is waited for, so a replay gives the same result every time.
-  loop.set_synchronous_backend(true);
-  eval::Trajectory estimate;
-  estimate.reserve(camera.frame_count());
-  std::vector<double> frame_ms;
-  frame_ms.reserve(camera.frame_count());
-  std::array<std::vector<double>, slam::StageTimes::kCount> stage_ms;
-  for (auto& stage : stage_ms) stage.reserve(camera.frame_count());
-  int failed_frames = 0;
-  eval::StatusCounts status_counts;
-  std::vector<eval::FrameRecord> frame_records;
-  frame_records.reserve(camera.frame_count());
-  struct KeyframeLink {
-    int node = -1;
-    std::uint32_t generation = 0;
-    Eigen::Isometry3d T_keyframe_cam = Eigen::Isometry3d::Identity();
-  };
-  std::vector<KeyframeLink> keyframe_links;
-  keyframe_links.reserve(camera.frame_count());
-  std::vector<slam::LoopClosure> closures;
+  pipeline_options.synchronous_backend = true;
+  pipeline_options.frame_log = true;
+  FramePipeline pipeline(config, recording.calibration, replayed_wheels ? &*replayed_wheels : nullptr, pipeline_options);
+  slam::SlamLoop& loop = pipeline.loop();
 
   g_stop_requested = false;
   std::signal(SIGINT, request_stop);
@@ -139,41 +129,15 @@ int run_replay(const ReplayArgs& args) {
     for (const auto& warning : camera.take_warnings()) std::cerr << "\nwarning: " << warning << "\n";
     if (status == hal::ReadStatus::kEndOfStream) break;
     if (status != hal::ReadStatus::kOk) continue;
-    const nav::MotionPrior* prior = nullptr;
-    if (wheels) {
-      // The bus releases the wheel frames up to the camera frame's stamp and the first one after
-      // it: the motion up to the stamp is known once the next wheel frame is in (at 100 Hz, at
-      // most 10 ms later; a live camera frame takes longer than that to arrive).
-      const std::int64_t stamp_ns = nav::recording_stamp_ns(frame.stamp_s);
-      can_bus.release_through(stamp_ns);
-      hal::CanFrame can_frame;
-      while (can_bus.receive(can_frame, std::chrono::milliseconds(0)) == hal::ReadStatus::kOk) {
-        (void)wheels->update(can_frame);
-      }
-      prior = wheels->prior_for(stamp_ns);
-    }
-    const auto start = std::chrono::steady_clock::now();
-    const slam::FrameResult result = loop.process(frame, prior);
-    frame_ms.push_back(std::chrono::duration<double, std::milli>(std::chrono::steady_clock::now() - start).count());
-    for (std::size_t i = 0; i < slam::StageTimes::kCount; ++i) stage_ms[i].push_back(result.times.ms[i]);
-    if (result.status == slam::FrameStatus::kFailed || result.status == slam::FrameStatus::kWheels) ++failed_frames;
-    status_counts.add(result);
-    frame_records.push_back(eval::frame_record(frame.stamp_s, result));
-    estimate.push_back({frame.stamp_s, result.T_world_cam});
-    keyframe_links.push_back({result.keyframe_node, result.keyframe_generation, result.T_keyframe_cam});
-    for (auto i = static_cast<int>(closures.size()); i < loop.loop_closures(); ++i) {
-      if (const slam::LoopClosure* closure = loop.loop_closure(i); closure != nullptr) closures.push_back(*closure);
-    }
-    progress.update(static_cast<unsigned>(estimate.size()));
+    (void)pipeline.process(frame);
+    progress.update(static_cast<unsigned>(pipeline.trajectory().size()));
   }
   progress.finish();
   // The last optimisation, then every frame re-expressed on its key-frame's optimised pose.
-  loop.finish();
-  for (std::size_t i = 0; i < estimate.size(); ++i) {
-    const KeyframeLink& link = keyframe_links[i];
-    Eigen::Isometry3d optimized;
-    if (loop.optimized_pose(link.node, link.generation, link.T_keyframe_cam, optimized)) estimate[i].T_world_cam = optimized;
-  }
+  pipeline.finish();
+  const eval::Trajectory& estimate = pipeline.trajectory();
+  const std::vector<slam::LoopClosure>& closures = pipeline.closures();
+  const int failed_frames = pipeline.failed_frames();
   const replay::ReplayCounters counters = camera.counters();
   for (const auto& warning : camera.take_warnings()) std::cerr << "warning: " << warning << "\n";
   camera.close();
@@ -189,7 +153,7 @@ int run_replay(const ReplayArgs& args) {
   };
   report_error(eval::write_tum_trajectory(args.out / "trajectory.txt", estimate));
   report_error(hal::write_file_atomically(args.out / "map.ply", std::string_view(loop.map().to_ply())));
-  report_error(hal::write_file_atomically(args.out / "frames.csv", std::string_view(eval::frames_csv(frame_records))));
+  report_error(hal::write_file_atomically(args.out / "frames.csv", std::string_view(eval::frames_csv(pipeline.frame_records()))));
 
   std::optional<eval::EvalResult> accuracy;
   std::optional<eval::Trajectory> ground_truth;
@@ -251,7 +215,7 @@ int run_replay(const ReplayArgs& args) {
   json.integer("skipped_frames", counters.corrupt);
   json.integer("dropped_frames", counters.dropped);
   json.boolean("decode_ahead", args.decode_ahead);
-  eval::write_status_and_wheels(json, status_counts, wheels ? &*wheels : nullptr, loop.wheel_slip_events(), wheels_off_reason);
+  eval::write_status_and_wheels(json, pipeline.status_counts(), wheels ? &*wheels : nullptr, loop.wheel_slip_events(), wheels_off_reason);
   json.integer("keyframes", loop.keyframes());
   json.integer("loop_closures", loop.loop_closures());
   if (checked_closures > 0) {
@@ -281,10 +245,10 @@ int run_replay(const ReplayArgs& args) {
   } else {
     json.null("ate_rmse_m").null("rpe_trans_m_per_s").null("rpe_rot_deg_per_s");
   }
-  eval::write_percentiles(json, "frame_ms", eval::percentiles(frame_ms));
+  eval::write_percentiles(json, "frame_ms", eval::percentiles(pipeline.frame_ms()));
   json.begin_object("stage_ms");
   for (std::size_t i = 0; i < slam::StageTimes::kCount; ++i) {
-    eval::write_percentiles(json, slam::StageTimes::kNames[i], eval::percentiles(stage_ms[i]));
+    eval::write_percentiles(json, slam::StageTimes::kNames[i], eval::percentiles(pipeline.stage_ms()[i]));
   }
   json.end_object();
   json.string("calibration", recording.calibration.source);
@@ -292,14 +256,14 @@ int run_replay(const ReplayArgs& args) {
   json.end_object();
   report_error(hal::write_file_atomically(args.out / "report.json", std::string_view(json.str())));
 
-  const eval::Percentiles timing = eval::percentiles(frame_ms);
+  const eval::Percentiles timing = eval::percentiles(pipeline.frame_ms());
   std::printf("frames %zu  failed %d  skipped %u  median %.1f ms/frame\n", estimate.size(), failed_frames,
               counters.corrupt, timing.median);
-  std::printf("status TRACKING %d  DEGRADED %d  LOST %d", status_counts.tracking, status_counts.degraded,
-              status_counts.lost);
+  std::printf("status TRACKING %d  DEGRADED %d  LOST %d", pipeline.status_counts().tracking, pipeline.status_counts().degraded,
+              pipeline.status_counts().lost);
   if (wheels) {
     std::printf("  wheel slip events %d  wheel/vision disagreements %d\n", loop.wheel_slip_events(),
-                status_counts.disagreements);
+                pipeline.status_counts().disagreements);
   } else {
     std::printf("  (no wheels: %s)\n", wheels_off_reason.c_str());
   }

@@ -3,8 +3,9 @@
 #include "commands.hpp"
 #include "config_file.hpp"
 #include "exit_codes.hpp"
+#include "frame_pipeline.hpp"
 #include "robot_config.hpp"
-#include "rankslam/nav/wheel_prior.hpp"
+#include "wheel_player.hpp"
 
 #include "rankslam/eval/run_report.hpp"
 #include "rankslam/eval/trajectory.hpp"
@@ -17,12 +18,10 @@
 
 #include <atomic>
 #include <chrono>
-#include <condition_variable>
 #include <csignal>
 #include <cstdio>
 #include <iostream>
 #include <memory>
-#include <mutex>
 #include <optional>
 #include <thread>
 
@@ -54,74 +53,6 @@ class StopSignals {
  private:
   struct sigaction old_int_ {};
   struct sigaction old_term_ {};
-};
-
-/// Plays a recording's wheel frames onto the bus on their recorded timing (scaled by `rate`).
-class WheelPlayer {
- public:
-  WheelPlayer(const std::vector<hal::CanFrame>& frames, const std::string& interface_name, double rate)
-      : frames_(frames), rate_(rate > 0.0 ? rate : 1.0) {
-    socketcan::SocketCanOptions options;
-    options.interface_name = interface_name;
-    // This socket only sends: receive nothing but an identifier no one uses.
-    options.filters.push_back({0x7FF, 0x7FF, false});
-    options.error_frames = false;
-    bus_ = std::make_unique<socketcan::SocketCanBus>(options);
-  }
-  ~WheelPlayer() { stop(); }
-  WheelPlayer(const WheelPlayer&) = delete;
-  WheelPlayer& operator=(const WheelPlayer&) = delete;
-
-  [[nodiscard]] std::string start() {
-    if (auto error = bus_->open(); !error.empty()) return error;
-    thread_ = std::thread([this] {
-      play();
-      finished_ = true;
-    });
-    return {};
-  }
-  void stop() {
-    {
-      std::lock_guard lock(mutex_);
-      stop_ = true;
-    }
-    changed_.notify_all();
-    if (thread_.joinable()) thread_.join();
-  }
-  [[nodiscard]] std::uint64_t sent() const { return sent_.load(); }
-  [[nodiscard]] std::uint64_t dropped() const { return dropped_.load(); }
-  /// Every frame was sent (or the player stopped).
-  [[nodiscard]] bool finished() const { return finished_.load(); }
-
- private:
-  void play() {
-    if (frames_.empty()) return;
-    const auto start = std::chrono::steady_clock::now();
-    const std::int64_t first_ns = frames_.front().stamp_ns;
-    for (const hal::CanFrame& frame : frames_) {
-      const auto offset = std::chrono::nanoseconds(static_cast<std::int64_t>(static_cast<double>(frame.stamp_ns - first_ns) / rate_));
-      {
-        std::unique_lock lock(mutex_);
-        if (changed_.wait_until(lock, start + offset, [this] { return stop_; })) return;
-      }
-      if (bus_->send(frame) == hal::ReadStatus::kOk) {
-        ++sent_;
-      } else {
-        ++dropped_;
-      }
-    }
-  }
-
-  const std::vector<hal::CanFrame>& frames_;
-  double rate_;
-  std::unique_ptr<socketcan::SocketCanBus> bus_;
-  std::mutex mutex_;
-  std::condition_variable changed_;
-  bool stop_ = false;
-  std::atomic<std::uint64_t> sent_{0};
-  std::atomic<std::uint64_t> dropped_{0};
-  std::atomic<bool> finished_{false};
-  std::thread thread_;
 };
 
 }  // namespace
@@ -201,13 +132,8 @@ int run_live(const RunArgs& args) {
             << ", calibration " << calibration.source << "\n"
             << describe_slam_config(slam_config) << std::flush;
 
-  slam::SlamLoop loop(slam_config, calibration);
   const Eigen::Isometry3d T_base_cam = calibration.rgb.T_base_cam;
   const Eigen::Isometry3d T_cam_base = T_base_cam.inverse();
-  eval::Trajectory trajectory;
-  trajectory.reserve(robot.max_trajectory_poses);
-  std::uint64_t trajectory_overflow = 0;
-  int failed_frames = 0;
 
   const StopSignals signals;
   nav::PoseMailbox mailbox;
@@ -234,6 +160,14 @@ int run_live(const RunArgs& args) {
                                                : "not used (" + wheels_off_reason + ")")
             << "\n"
             << (wheels.enabled() ? describe_wheel_config(wheel_config) : std::string()) << std::flush;
+  std::optional<WheelPlayer> player;
+  ReceivedWheels received_wheels(wheels, player);
+  PipelineOptions pipeline_options;
+  pipeline_options.max_frames = robot.max_trajectory_poses;
+  pipeline_options.recording_clock = replay_camera != nullptr;
+  FramePipeline pipeline(slam_config, calibration, wheels.enabled() ? &received_wheels : nullptr, pipeline_options);
+  slam::SlamLoop& loop = pipeline.loop();
+
   nav::PoseOutputOptions output_options;
   output_options.broadcast = robot.output;
   output_options.wheel_can_id = wheel_can_id;
@@ -256,7 +190,6 @@ int run_live(const RunArgs& args) {
     bus.close();
   });
 
-  std::optional<WheelPlayer> player;
   if (play_wheels) {
     // A frame played before the output thread's socket is bound never reaches it (the first wheel
     // frame, whose stamp starts the odometry, went missing that way under load).
@@ -269,8 +202,6 @@ int run_live(const RunArgs& args) {
       player.reset();
     }
   }
-  eval::StatusCounts status_counts;
-  nav::MotionPrior prior;
 
   hal::RgbdFrame frame;
   bool interrupted = false;
@@ -293,7 +224,7 @@ int run_live(const RunArgs& args) {
       for (const auto& warning : replay_camera->take_warnings()) std::cerr << "warning: " << warning << "\n";
     }
     if (status == hal::ReadStatus::kEndOfStream) {
-      std::cout << "end of stream after " << trajectory.size() << " frames" << std::endl;
+      std::cout << "end of stream after " << pipeline.trajectory().size() << " frames" << std::endl;
       end_time = std::chrono::steady_clock::now();
       mailbox.set_end_of_stream();
       continue;
@@ -303,33 +234,9 @@ int run_live(const RunArgs& args) {
       continue;
     }
     const std::int64_t capture_ns = hal::MonotonicClock{}.now_ns();
-    const nav::MotionPrior* frame_prior = nullptr;
-    const std::int64_t wheel_stamp_ns = replay_camera != nullptr ? nav::recording_stamp_ns(frame.stamp_s) : frame.stamp_ns;
-    if (wheels.enabled()) {
-      // The motion up to the frame is known once a wheel frame at or after its stamp is in. A live
-      // base: wait for it up to three wheel periods, while wheel frames are arriving at all. A
-      // played recording: wait while the player plays (a lossless replay camera may run ahead
-      // of the recorded timing the wheel frames keep), so that every frame has the prior it has
-      // in `replay`.
-      const bool playing = player && !player->finished();
-      const auto keep_waiting = [&](std::int64_t newest_arrival_ns) {
-        return playing ? !player->finished() : hal::MonotonicClock{}.now_ns() - newest_arrival_ns < 200'000'000;
-      };
-      if (wheels.prior_for(wheel_stamp_ns, playing ? std::chrono::milliseconds(1000) : std::chrono::milliseconds(30),
-                           keep_waiting, prior)) {
-        frame_prior = &prior;
-      }
-    }
-    const slam::FrameResult result = loop.process(frame, frame_prior);
-    status_counts.add(result);
+    const slam::FrameResult result = pipeline.process(frame);
     const bool registered =
         result.status == slam::FrameStatus::kTracking || result.status == slam::FrameStatus::kFirstFrame;
-    if (!registered) ++failed_frames;
-    if (trajectory.size() < robot.max_trajectory_poses) {
-      trajectory.push_back({frame.stamp_s, result.T_world_cam});
-    } else {
-      ++trajectory_overflow;
-    }
     nav::PoseSample sample;
     // The map frame is the base frame at the first camera frame.
     sample.T_map_base = T_base_cam * result.T_world_cam * T_cam_base;
@@ -344,7 +251,7 @@ int run_live(const RunArgs& args) {
     // The correction in base frames: T_map_base = T_base_cam * T_world_cam * T_cam_base.
     const Eigen::Isometry3d correction = T_base_cam * result.map_correction * T_cam_base;
     mailbox.post(sample, result.graph_applied ? &correction : nullptr,
-                 wheels.enabled() ? std::optional<std::int64_t>(wheel_stamp_ns) : std::nullopt);
+                 wheels.enabled() ? std::optional<std::int64_t>(pipeline.wheel_stamp_ns(frame)) : std::nullopt);
   }
 
   if (player) player->stop();
@@ -361,8 +268,8 @@ int run_live(const RunArgs& args) {
     exit_code = kExitOutput;
   };
   // The trajectory is what the pose output sent; the map takes the last optimised key-frame poses.
-  loop.finish();
-  report_error(eval::write_tum_trajectory(out / "trajectory.txt", trajectory));
+  pipeline.finish();
+  report_error(eval::write_tum_trajectory(out / "trajectory.txt", pipeline.trajectory()));
   report_error(hal::write_file_atomically(out / "map.ply", std::string_view(loop.map().to_ply())));
 
   eval::JsonWriter json;
@@ -380,15 +287,15 @@ int run_live(const RunArgs& args) {
     json.integer("camera_reopens", static_cast<long long>(c.reopens));
   }
   json.string("can_interface", robot.can_interface);
-  json.integer("frames", static_cast<long long>(trajectory.size()));
-  json.integer("failed_frames", failed_frames);
+  json.integer("frames", static_cast<long long>(pipeline.trajectory().size()));
+  json.integer("failed_frames", pipeline.failed_frames());
   // The sender has stopped: the wheels need no lock any more.
-  eval::write_status_and_wheels(json, status_counts, wheels.prior(), loop.wheel_slip_events(),
+  eval::write_status_and_wheels(json, pipeline.status_counts(), wheels.prior(), loop.wheel_slip_events(),
                           wheels_off_reason);
   if (wheels.enabled()) json.integer("wheel_frames_unmatched", static_cast<long long>(wheel_counters.unmatched));
   json.integer("skipped_frames", replay_counters.corrupt);
   json.integer("dropped_frames", replay_counters.dropped);
-  json.integer("trajectory_overflow", static_cast<long long>(trajectory_overflow));
+  json.integer("trajectory_overflow", static_cast<long long>(pipeline.trajectory_overflow()));
   json.integer("pose_cycles", static_cast<long long>(pose_counters.pose_cycles));
   json.integer("lost_cycles", static_cast<long long>(pose_counters.lost_cycles));
   json.integer("heartbeats", static_cast<long long>(pose_counters.heartbeats));
@@ -405,7 +312,7 @@ int run_live(const RunArgs& args) {
   report_error(hal::write_file_atomically(out / "report.json", std::string_view(json.str())));
 
   std::printf("frames %zu  failed %d  pose cycles %llu (lost %llu)  heartbeats %llu  wheel frames in %llu%s\n",
-              trajectory.size(), failed_frames, static_cast<unsigned long long>(pose_counters.pose_cycles),
+              pipeline.trajectory().size(), pipeline.failed_frames(), static_cast<unsigned long long>(pose_counters.pose_cycles),
               static_cast<unsigned long long>(pose_counters.lost_cycles),
               static_cast<unsigned long long>(pose_counters.heartbeats),
               static_cast<unsigned long long>(wheel_counters.frames), interrupted ? "  (interrupted)" : "");
