@@ -1,7 +1,11 @@
 #include "config_file.hpp"
 
+#include "commands.hpp"
+#include "exit_codes.hpp"
+
 #include <yaml-cpp/yaml.h>
 
+#include <iostream>
 #include <set>
 #include <sstream>
 #include <string>
@@ -122,6 +126,44 @@ std::string describe_wheel_config(nav::WheelOdometryConfig config) {
          << "\n";
   });
   return text.str();
+}
+
+int load_pipeline_config(const std::filesystem::path& path, const std::string& mode_name,
+                         slam::SlamConfig& slam_config, nav::WheelOdometryConfig& wheel_config) {
+  if (!path.empty()) {
+    if (auto error = load_slam_config(path, slam_config); !error.empty()) {
+      std::cerr << "error: " << error << "\n";
+      return kExitInput;
+    }
+    if (auto error = load_wheel_config(path, wheel_config); !error.empty()) {
+      std::cerr << "error: " << error << "\n";
+      return kExitInput;
+    }
+  }
+  slam_config.mode = kDefaultMode;
+  if (!mode_name.empty()) {
+    const auto mode = parse_mode(mode_name);
+    if (!mode) {
+      std::cerr << "error: unknown mode '" << mode_name << "' (baseline, photometric, geometric, fused)\n";
+      return kExitUsage;
+    }
+    slam_config.mode = *mode;
+  }
+  if (!mode_implemented(slam_config.mode)) {
+    std::cerr << "error: mode '" << slam::to_string(slam_config.mode) << "' is not implemented yet\n";
+    return kExitNotAvailable;
+  }
+  return kExitOk;
+}
+
+int make_output_directory(const std::filesystem::path& dir) {
+  std::error_code ec;
+  std::filesystem::create_directories(dir, ec);
+  if (!std::filesystem::is_directory(dir)) {
+    std::cerr << "error: cannot create output directory " << dir << ": " << ec.message() << "\n";
+    return kExitOutput;
+  }
+  return kExitOk;
 }
 
 }  // namespace rankslam::app

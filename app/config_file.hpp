@@ -25,4 +25,13 @@ namespace rankslam::app {
 /// Every effective wheel odometry parameter, one "wheel_odometry.name = value unit  # doc" line each.
 [[nodiscard]] std::string describe_wheel_config(nav::WheelOdometryConfig config);
 
+/// What `replay` and `run` configure alike: the slam and wheel_odometry sections of `path` (the
+/// defaults when empty) and the registration named `mode_name` (kDefaultMode when empty). kExitOk,
+/// or the exit code after printing why not.
+[[nodiscard]] int load_pipeline_config(const std::filesystem::path& path, const std::string& mode_name,
+                                       slam::SlamConfig& slam_config, nav::WheelOdometryConfig& wheel_config);
+
+/// Creates the output directory `dir`; kExitOk, or kExitOutput after printing why not.
+[[nodiscard]] int make_output_directory(const std::filesystem::path& dir);
+
 }  // namespace rankslam::app

@@ -1,16 +1,17 @@
 #include "commands.hpp"
 #include "config_file.hpp"
 #include "exit_codes.hpp"
-#include "json_writer.hpp"
+#include "frame_pipeline.hpp"
 #include "progress.hpp"
-#include "status_counts.hpp"
 #include "rankslam/nav/wheel_prior.hpp"
 
 #include "rankslam/eval/metrics.hpp"
 #include "rankslam/eval/plot.hpp"
+#include "rankslam/eval/run_report.hpp"
 #include "rankslam/eval/trajectory.hpp"
 #include "rankslam/hal/atomic_file.hpp"
 #include "rankslam/replay/replay_camera.hpp"
+#include "rankslam/replay/replay_can_bus.hpp"
 #include "rankslam/slam/slam_loop.hpp"
 
 #include <algorithm>
@@ -28,140 +29,20 @@ std::atomic<bool> g_stop_requested{false};
 
 extern "C" void request_stop(int /*signal*/) { g_stop_requested.store(true); }
 
-struct Percentiles {
-  double median = 0.0;
-  double p90 = 0.0;
-  double max = 0.0;
-};
-
-Percentiles percentiles(std::vector<double> values) {
-  Percentiles result;
-  if (values.empty()) return result;
-  std::sort(values.begin(), values.end());
-  const auto at = [&](double q) { return values[static_cast<std::size_t>(q * static_cast<double>(values.size() - 1) + 0.5)]; };
-  result.median = at(0.5);
-  result.p90 = at(0.9);
-  result.max = values.back();
-  return result;
-}
-
-/// One line of frames.csv.
-struct FrameRecord {
-  double stamp_s = 0.0;
-  slam::FrameStatus status = slam::FrameStatus::kFirstFrame;
-  int inliers = 0;
-  int photometric_matches = 0;
-  int photometric_inliers = 0;
-  int geometric_matches = 0;
-  int geometric_inliers = 0;
-  double photometric_weight = 0.0;
-  nav::WheelCheck wheels;
-};
-
-/// Per-frame status and how vision compared with the wheels, for plots and checks.
-std::string frames_csv(const std::vector<FrameRecord>& records) {
-  std::string text =
-      "# stamp status inliers prior compared frame_distance_sq window_distance_sq disagree vision_trusted "
-      "wheels_trusted slip_event photometric_matches photometric_inliers geometric_matches geometric_inliers "
-      "photometric_weight forward_residual_m lateral_residual_m yaw_residual_deg height_residual_m tilt_residual_deg\n";
-  char line[320];
-  for (const FrameRecord& r : records) {
-    std::snprintf(line, sizeof line, "%.6f %s %d %d %d %.3f %.3f %d %d %d %d %d %d %d %d %.3f %.5f %.5f %.4f %.5f %.4f\n", r.stamp_s,
-                  std::string(slam::to_string(r.status)).c_str(), r.inliers, r.wheels.prior_given ? 1 : 0,
-                  r.wheels.compared ? 1 : 0, r.wheels.frame_distance_sq, r.wheels.window_distance_sq,
-                  r.wheels.disagree ? 1 : 0, r.wheels.vision_trusted ? 1 : 0, r.wheels.wheels_trusted ? 1 : 0,
-                  r.wheels.slip_event ? 1 : 0, r.photometric_matches, r.photometric_inliers, r.geometric_matches,
-                  r.geometric_inliers, r.photometric_weight, r.wheels.forward_residual_m, r.wheels.lateral_residual_m,
-                  r.wheels.yaw_residual_deg, r.wheels.height_residual_m, r.wheels.tilt_residual_deg);
-    text += line;
-  }
-  return text;
-}
-
-// A loop closure counts as false when its measured relative pose is farther than this from the
-// ground truth's: it joined two places that are not where the graph now puts them. (Correct
-// closures on fr1_rpy_head are off by up to 0.12 m and 6 deg: imprecise, not false.)
-constexpr double kFalseClosureTranslation_m = 0.25;
-constexpr double kFalseClosureRotation_deg = 10.0;
-
-bool is_false_closure(const eval::RelativePoseError& error) {
-  return error.has_ground_truth &&
-         (error.translation_m > kFalseClosureTranslation_m || error.rotation_deg > kFalseClosureRotation_deg);
-}
-
-/// Each accepted loop closure, with its error against the ground truth where there is one.
-std::string loop_closures_csv(const std::vector<slam::LoopClosure>& closures,
-                              const std::vector<eval::RelativePoseError>& errors) {
-  std::string text =
-      "# stored_stamp current_stamp tx ty tz qx qy qz qw photometric_inliers geometric_inliers threshold "
-      "gt_translation_error_m gt_rotation_error_deg false_closure\n";
-  char line[384];
-  for (std::size_t i = 0; i < closures.size(); ++i) {
-    const slam::LoopClosure& c = closures[i];
-    const Eigen::Vector3d t = c.T_stored_current.translation();
-    Eigen::Quaterniond q(c.T_stored_current.linear());
-    if (q.w() < 0.0) q.coeffs() = -q.coeffs();
-    const eval::RelativePoseError* error = i < errors.size() && errors[i].has_ground_truth ? &errors[i] : nullptr;
-    std::snprintf(line, sizeof line, "%.6f %.6f %.6f %.6f %.6f %.6f %.6f %.6f %.6f %d %d %.1f ", c.stored_stamp_s,
-                  c.current_stamp_s, t.x(), t.y(), t.z(), q.x(), q.y(), q.z(), q.w(), c.photometric_inliers,
-                  c.geometric_inliers, c.threshold);
-    text += line;
-    if (error != nullptr) {
-      std::snprintf(line, sizeof line, "%.4f %.3f %d\n", error->translation_m, error->rotation_deg,
-                    is_false_closure(*error) ? 1 : 0);
-    } else {
-      std::snprintf(line, sizeof line, "nan nan nan\n");
-    }
-    text += line;
-  }
-  return text;
-}
-
-void write_percentiles(JsonWriter& json, std::string_view key, const Percentiles& p) {
-  json.begin_object(key).number("median", p.median).number("p90", p.p90).number("max", p.max).end_object();
-}
-
 }  // namespace
 
 int run_replay(const ReplayArgs& args) {
   namespace fs = std::filesystem;
   slam::SlamConfig config;
   nav::WheelOdometryConfig wheel_config;
-  if (!args.config.empty()) {
-    if (auto error = load_slam_config(args.config, config); !error.empty()) {
-      std::cerr << "error: " << error << "\n";
-      return kExitInput;
-    }
-    if (auto error = load_wheel_config(args.config, wheel_config); !error.empty()) {
-      std::cerr << "error: " << error << "\n";
-      return kExitInput;
-    }
-  }
-  config.mode = kDefaultMode;
-  if (!args.mode.empty()) {
-    const auto mode = parse_mode(args.mode);
-    if (!mode) {
-      std::cerr << "error: unknown mode '" << args.mode << "' (baseline, photometric, geometric, fused)\n";
-      return kExitUsage;
-    }
-    config.mode = *mode;
-  }
-  if (!mode_implemented(config.mode)) {
-    std::cerr << "error: mode '" << slam::to_string(config.mode) << "' is not implemented yet\n";
-    return kExitNotAvailable;
-  }
-
-  std::error_code ec;
-  fs::create_directories(args.out, ec);
-  if (!fs::is_directory(args.out)) {
-    std::cerr << "error: cannot create output directory " << args.out << ": " << ec.message() << "\n";
-    return kExitOutput;
-  }
+  if (const int code = load_pipeline_config(args.config, args.mode, config, wheel_config); code != kExitOk) return code;
+  if (const int code = make_output_directory(args.out); code != kExitOk) return code;
 
   fs::path recording_dir = args.recording;
   if (recording_dir.empty()) {
     recording_dir = args.out / "recording";
     if (!args.quiet) std::cout << "no recording given: simulating the '" << kDefaultScene << "' scene into " << recording_dir << "\n";
+    std::error_code ec;
     fs::remove_all(recording_dir, ec);
     SimulateArgs simulate;
     simulate.scene = kDefaultScene;
@@ -215,29 +96,23 @@ int run_replay(const ReplayArgs& args) {
               << "\n"
               << (wheels ? describe_wheel_config(wheel_config) : std::string());
   }
-  std::size_t next_can_frame = 0;
+  // The recording's CAN frames reach the odometry through a bus, as a live base's do.
+  replay::ReplayCanBus can_bus(recording.can_frames, {recording.calibration.wheels.value_or(hal::WheelGeometry{}).can_id});
+  if (auto error = can_bus.open(); !error.empty()) {
+    std::cerr << "error: " << recording.root.string() << "/can.log: " << error << "\n";
+    return kExitInput;
+  }
+  std::optional<ReplayedWheels> replayed_wheels;
+  if (wheels) replayed_wheels.emplace(can_bus, *wheels);
 
-  slam::SlamLoop loop(config, recording.calibration);
+  PipelineOptions pipeline_options;
+  pipeline_options.max_frames = camera.frame_count();
+  pipeline_options.recording_clock = true;
   // Offline: each pose-graph solve is waited for, so a replay gives the same result every time.
-  loop.set_synchronous_backend(true);
-  eval::Trajectory estimate;
-  estimate.reserve(camera.frame_count());
-  std::vector<double> frame_ms;
-  frame_ms.reserve(camera.frame_count());
-  std::array<std::vector<double>, slam::StageTimes::kCount> stage_ms;
-  for (auto& stage : stage_ms) stage.reserve(camera.frame_count());
-  int failed_frames = 0;
-  StatusCounts status_counts;
-  std::vector<FrameRecord> frame_records;
-  frame_records.reserve(camera.frame_count());
-  struct KeyframeLink {
-    int node = -1;
-    std::uint32_t generation = 0;
-    Eigen::Isometry3d T_keyframe_cam = Eigen::Isometry3d::Identity();
-  };
-  std::vector<KeyframeLink> keyframe_links;
-  keyframe_links.reserve(camera.frame_count());
-  std::vector<slam::LoopClosure> closures;
+  pipeline_options.synchronous_backend = true;
+  pipeline_options.frame_log = true;
+  FramePipeline pipeline(config, recording.calibration, replayed_wheels ? &*replayed_wheels : nullptr, pipeline_options);
+  slam::SlamLoop& loop = pipeline.loop();
 
   g_stop_requested = false;
   std::signal(SIGINT, request_stop);
@@ -254,43 +129,15 @@ int run_replay(const ReplayArgs& args) {
     for (const auto& warning : camera.take_warnings()) std::cerr << "\nwarning: " << warning << "\n";
     if (status == hal::ReadStatus::kEndOfStream) break;
     if (status != hal::ReadStatus::kOk) continue;
-    const nav::MotionPrior* prior = nullptr;
-    if (wheels) {
-      // The wheel frames in stamp order up to the camera frame's stamp and the first one after
-      // it: the motion up to the stamp is known once the next wheel frame is in (at 100 Hz, at
-      // most 10 ms later; a live camera frame takes longer than that to arrive).
-      const std::int64_t stamp_ns = nav::recording_stamp_ns(frame.stamp_s);
-      while (next_can_frame < recording.can_frames.size()) {
-        const hal::CanFrame& can_frame = recording.can_frames[next_can_frame++];
-        const nav::WheelFrameResult fed = wheels->update(can_frame);
-        if (can_frame.stamp_ns >= stamp_ns && fed != nav::WheelFrameResult::kNotWheelFrame) break;
-      }
-      prior = wheels->prior_for(stamp_ns);
-    }
-    const auto start = std::chrono::steady_clock::now();
-    const slam::FrameResult result = loop.process(frame, prior);
-    frame_ms.push_back(std::chrono::duration<double, std::milli>(std::chrono::steady_clock::now() - start).count());
-    for (std::size_t i = 0; i < slam::StageTimes::kCount; ++i) stage_ms[i].push_back(result.times.ms[i]);
-    if (result.status == slam::FrameStatus::kFailed || result.status == slam::FrameStatus::kWheels) ++failed_frames;
-    status_counts.add(result);
-    frame_records.push_back({frame.stamp_s, result.status, result.inliers, result.photometric_matches,
-                             result.photometric_inliers, result.geometric_matches, result.geometric_inliers,
-                             result.photometric_weight, result.wheels});
-    estimate.push_back({frame.stamp_s, result.T_world_cam});
-    keyframe_links.push_back({result.keyframe_node, result.keyframe_generation, result.T_keyframe_cam});
-    for (auto i = static_cast<int>(closures.size()); i < loop.loop_closures(); ++i) {
-      if (const slam::LoopClosure* closure = loop.loop_closure(i); closure != nullptr) closures.push_back(*closure);
-    }
-    progress.update(static_cast<unsigned>(estimate.size()));
+    (void)pipeline.process(frame);
+    progress.update(static_cast<unsigned>(pipeline.trajectory().size()));
   }
   progress.finish();
   // The last optimisation, then every frame re-expressed on its key-frame's optimised pose.
-  loop.finish();
-  for (std::size_t i = 0; i < estimate.size(); ++i) {
-    const KeyframeLink& link = keyframe_links[i];
-    Eigen::Isometry3d optimized;
-    if (loop.optimized_pose(link.node, link.generation, link.T_keyframe_cam, optimized)) estimate[i].T_world_cam = optimized;
-  }
+  pipeline.finish();
+  const eval::Trajectory& estimate = pipeline.trajectory();
+  const std::vector<slam::LoopClosure>& closures = pipeline.closures();
+  const int failed_frames = pipeline.failed_frames();
   const replay::ReplayCounters counters = camera.counters();
   for (const auto& warning : camera.take_warnings()) std::cerr << "warning: " << warning << "\n";
   camera.close();
@@ -306,7 +153,7 @@ int run_replay(const ReplayArgs& args) {
   };
   report_error(eval::write_tum_trajectory(args.out / "trajectory.txt", estimate));
   report_error(hal::write_file_atomically(args.out / "map.ply", std::string_view(loop.map().to_ply())));
-  report_error(hal::write_file_atomically(args.out / "frames.csv", std::string_view(frames_csv(frame_records))));
+  report_error(hal::write_file_atomically(args.out / "frames.csv", std::string_view(eval::frames_csv(pipeline.frame_records()))));
 
   std::optional<eval::EvalResult> accuracy;
   std::optional<eval::Trajectory> ground_truth;
@@ -339,7 +186,7 @@ int run_replay(const ReplayArgs& args) {
     }
   }
   report_error(
-      hal::write_file_atomically(args.out / "loop_closures.csv", std::string_view(loop_closures_csv(closures, closure_errors))));
+      hal::write_file_atomically(args.out / "loop_closures.csv", std::string_view(eval::loop_closures_csv(closures, closure_errors))));
   int checked_closures = 0;
   int false_closures = 0;
   double worst_closure_m = 0.0;
@@ -347,7 +194,7 @@ int run_replay(const ReplayArgs& args) {
   for (const eval::RelativePoseError& error : closure_errors) {
     if (!error.has_ground_truth) continue;
     ++checked_closures;
-    false_closures += is_false_closure(error) ? 1 : 0;
+    false_closures += eval::is_false_closure(error) ? 1 : 0;
     worst_closure_m = std::max(worst_closure_m, error.translation_m);
     worst_closure_deg = std::max(worst_closure_deg, error.rotation_deg);
   }
@@ -359,7 +206,7 @@ int run_replay(const ReplayArgs& args) {
     report_error(eval::write_png(args.out / "trajectory.png", plot));
   }
 
-  JsonWriter json;
+  eval::JsonWriter json;
   json.begin_object();
   json.string("recording", recording.root.string());
   json.string("mode", slam::to_string(config.mode));
@@ -368,7 +215,7 @@ int run_replay(const ReplayArgs& args) {
   json.integer("skipped_frames", counters.corrupt);
   json.integer("dropped_frames", counters.dropped);
   json.boolean("decode_ahead", args.decode_ahead);
-  write_status_and_wheels(json, status_counts, wheels ? &*wheels : nullptr, loop.wheel_slip_events(), wheels_off_reason);
+  eval::write_status_and_wheels(json, pipeline.status_counts(), wheels ? &*wheels : nullptr, loop.wheel_slip_events(), wheels_off_reason);
   json.integer("keyframes", loop.keyframes());
   json.integer("loop_closures", loop.loop_closures());
   if (checked_closures > 0) {
@@ -398,10 +245,10 @@ int run_replay(const ReplayArgs& args) {
   } else {
     json.null("ate_rmse_m").null("rpe_trans_m_per_s").null("rpe_rot_deg_per_s");
   }
-  write_percentiles(json, "frame_ms", percentiles(frame_ms));
+  eval::write_percentiles(json, "frame_ms", eval::percentiles(pipeline.frame_ms()));
   json.begin_object("stage_ms");
   for (std::size_t i = 0; i < slam::StageTimes::kCount; ++i) {
-    write_percentiles(json, slam::StageTimes::kNames[i], percentiles(stage_ms[i]));
+    eval::write_percentiles(json, slam::StageTimes::kNames[i], eval::percentiles(pipeline.stage_ms()[i]));
   }
   json.end_object();
   json.string("calibration", recording.calibration.source);
@@ -409,14 +256,14 @@ int run_replay(const ReplayArgs& args) {
   json.end_object();
   report_error(hal::write_file_atomically(args.out / "report.json", std::string_view(json.str())));
 
-  const Percentiles timing = percentiles(frame_ms);
+  const eval::Percentiles timing = eval::percentiles(pipeline.frame_ms());
   std::printf("frames %zu  failed %d  skipped %u  median %.1f ms/frame\n", estimate.size(), failed_frames,
               counters.corrupt, timing.median);
-  std::printf("status TRACKING %d  DEGRADED %d  LOST %d", status_counts.tracking, status_counts.degraded,
-              status_counts.lost);
+  std::printf("status TRACKING %d  DEGRADED %d  LOST %d", pipeline.status_counts().tracking, pipeline.status_counts().degraded,
+              pipeline.status_counts().lost);
   if (wheels) {
     std::printf("  wheel slip events %d  wheel/vision disagreements %d\n", loop.wheel_slip_events(),
-                status_counts.disagreements);
+                pipeline.status_counts().disagreements);
   } else {
     std::printf("  (no wheels: %s)\n", wheels_off_reason.c_str());
   }

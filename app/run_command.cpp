@@ -3,15 +3,14 @@
 #include "commands.hpp"
 #include "config_file.hpp"
 #include "exit_codes.hpp"
-#include "json_writer.hpp"
+#include "frame_pipeline.hpp"
 #include "robot_config.hpp"
-#include "status_counts.hpp"
-#include "rankslam/nav/wheel_prior.hpp"
+#include "wheel_player.hpp"
 
+#include "rankslam/eval/run_report.hpp"
 #include "rankslam/eval/trajectory.hpp"
 #include "rankslam/hal/atomic_file.hpp"
-#include "rankslam/nav/pose_broadcaster.hpp"
-#include "rankslam/nav/wheel_frame.hpp"
+#include "rankslam/nav/pose_output.hpp"
 #include "rankslam/openni2/openni2_camera.hpp"
 #include "rankslam/replay/replay_camera.hpp"
 #include "rankslam/slam/slam_loop.hpp"
@@ -19,12 +18,10 @@
 
 #include <atomic>
 #include <chrono>
-#include <condition_variable>
 #include <csignal>
 #include <cstdio>
 #include <iostream>
 #include <memory>
-#include <mutex>
 #include <optional>
 #include <thread>
 
@@ -58,211 +55,6 @@ class StopSignals {
   struct sigaction old_term_ {};
 };
 
-/// What the SLAM thread hands to the output thread: the latest sample and the camera state.
-struct Mailbox {
-  std::mutex mutex;
-  std::optional<nav::PoseSample> sample;
-  /// Map corrections of the samples since the output last took one: a sample that is
-  /// overwritten before the output sees it must not take its correction with it.
-  Eigen::Isometry3d pending_correction = Eigen::Isometry3d::Identity();
-  /// The sample's camera stamp on the wheel odometry's clock (none without wheels).
-  std::optional<std::int64_t> wheel_stamp_ns;
-  std::uint64_t sample_count = 0;
-  bool camera_fault = false;
-  bool end_of_stream = false;
-};
-
-/// Wheel frames received from the bus (the base controller's, or the replayed ones).
-struct WheelCounters {
-  std::uint64_t frames = 0;
-  std::uint64_t malformed = 0;
-  std::uint64_t counter_gaps = 0;  ///< rolling-counter jumps: frames lost somewhere
-  std::uint64_t unmatched = 0;     ///< replay: received frames that match no played frame
-};
-
-/// The wheel odometry of a run: fed by the output thread from its CAN socket, read by the SLAM
-/// thread for each camera frame's prior, under `mutex`.
-struct LiveWheels {
-  std::mutex mutex;
-  std::condition_variable advanced;  ///< a wheel frame was integrated
-  std::optional<nav::WheelPrior> prior;   ///< absent when the calibration has no wheels section
-  std::int64_t newest_arrival_ns = 0;  ///< monotonic time the newest wheel frame arrived
-  bool receiving = false;              ///< the output thread's bus is open: frames sent now reach it
-  /// Replay through the bus: the wheel frames played from the recording, whose stamps the
-  /// received frames take (matched by identifier and data, in order), so that the odometry runs
-  /// on the recording's clock as the replay camera's frames do. Empty for a live base.
-  const std::vector<hal::CanFrame>* recorded = nullptr;
-  std::size_t next_recorded = 0;
-};
-
-/// The recording stamp of a played wheel frame: the next recorded frame equal to it, looked for
-/// a few frames ahead (the bus may have dropped some). False when none matches.
-bool recorded_stamp(LiveWheels& wheels, const hal::CanFrame& frame, std::int64_t& stamp_ns) {
-  constexpr std::size_t kLookAhead = 16;
-  const std::vector<hal::CanFrame>& recorded = *wheels.recorded;
-  for (std::size_t i = wheels.next_recorded; i < recorded.size() && i < wheels.next_recorded + kLookAhead; ++i) {
-    const hal::CanFrame& candidate = recorded[i];
-    if (candidate.id == frame.id && candidate.length == frame.length && candidate.data == frame.data) {
-      stamp_ns = candidate.stamp_ns;
-      wheels.next_recorded = i + 1;
-      return true;
-    }
-  }
-  return false;
-}
-
-struct OutputResult {
-  nav::PoseOutputCounters pose;
-  WheelCounters wheels;
-  hal::CanBusStatistics bus;
-};
-
-/// The output thread: pose cycles and heartbeats at their rates, wheel frames in. It owns its
-/// CAN socket; SLAM never waits for it.
-void output_thread(const RobotConfig& config, unsigned wheel_can_id, Mailbox& mailbox, LiveWheels& wheels,
-                   const std::atomic<bool>& stop, OutputResult& result) {
-  socketcan::SocketCanOptions options;
-  options.interface_name = config.can_interface;
-  options.filters.push_back({wheel_can_id, 0x7FF, false});
-  socketcan::SocketCanBus bus(options);
-  // open() was checked by the caller on an identical bus; a failure here is counted as faults.
-  (void)bus.open();
-  {
-    std::lock_guard lock(wheels.mutex);
-    wheels.receiving = true;
-  }
-  wheels.advanced.notify_all();
-  hal::MonotonicClock clock;
-  nav::PoseBroadcaster broadcaster(config.output, bus, clock);
-  std::uint64_t seen = 0;
-  std::optional<std::int64_t> sample_wheel_stamp_ns;
-  std::optional<std::uint8_t> last_counter;
-  hal::CanFrame frame;
-  while (!stop.load()) {
-    {
-      std::lock_guard lock(mailbox.mutex);
-      if (mailbox.sample_count != seen && mailbox.sample) {
-        seen = mailbox.sample_count;
-        nav::PoseSample sample = *mailbox.sample;
-        sample.map_correction = mailbox.pending_correction;
-        mailbox.pending_correction.setIdentity();
-        sample_wheel_stamp_ns = mailbox.wheel_stamp_ns;
-        broadcaster.update(sample);
-      }
-      broadcaster.set_camera_state(mailbox.camera_fault, mailbox.end_of_stream);
-    }
-    if (sample_wheel_stamp_ns) {
-      // The pose cycles move the latest SLAM pose on by the wheels since its camera frame.
-      std::lock_guard lock(wheels.mutex);
-      nav::RelativeMotion motion;
-      if (wheels.prior && wheels.prior->odometry().relative_motion(
-                              *sample_wheel_stamp_ns, wheels.prior->odometry().newest_stamp_ns(), motion) ==
-                              nav::RelativeMotionStatus::kOk) {
-        broadcaster.set_wheel_motion(nav::to_isometry3d(motion.T_a_b));
-      }
-    }
-    const std::int64_t wait_ns = broadcaster.poll();
-    // Wait for the next due frame inside receive(), which also collects wheel frames.
-    const auto wait = std::chrono::milliseconds(std::min<std::int64_t>(wait_ns / 1'000'000, 20));
-    const hal::ReadStatus status = bus.receive(frame, wait);
-    if (status == hal::ReadStatus::kOk) {
-      if (const auto ticks = nav::decode_wheel_ticks(frame)) {
-        ++result.wheels.frames;
-        if (last_counter && static_cast<std::uint8_t>(*last_counter + 1U) != ticks->rolling_counter) {
-          ++result.wheels.counter_gaps;
-        }
-        last_counter = ticks->rolling_counter;
-        {
-          std::lock_guard lock(wheels.mutex);
-          hal::CanFrame stamped = frame;
-          if (wheels.prior && (wheels.recorded == nullptr || recorded_stamp(wheels, frame, stamped.stamp_ns))) {
-            (void)wheels.prior->update(stamped);
-            wheels.newest_arrival_ns = clock.now_ns();
-          } else if (wheels.prior) {
-            ++result.wheels.unmatched;
-          }
-        }
-        wheels.advanced.notify_all();
-      } else {
-        ++result.wheels.malformed;
-      }
-    } else if (status == hal::ReadStatus::kFault) {
-      std::this_thread::sleep_for(wait);  // the bus reopens on its own; do not spin meanwhile
-    }
-  }
-  result.pose = broadcaster.counters();
-  result.bus = bus.statistics();
-  bus.close();
-}
-
-/// Plays a recording's wheel frames onto the bus on their recorded timing (scaled by `rate`).
-class WheelPlayer {
- public:
-  WheelPlayer(const std::vector<hal::CanFrame>& frames, const std::string& interface_name, double rate)
-      : frames_(frames), rate_(rate > 0.0 ? rate : 1.0) {
-    socketcan::SocketCanOptions options;
-    options.interface_name = interface_name;
-    // This socket only sends: receive nothing but an identifier no one uses.
-    options.filters.push_back({0x7FF, 0x7FF, false});
-    options.error_frames = false;
-    bus_ = std::make_unique<socketcan::SocketCanBus>(options);
-  }
-  ~WheelPlayer() { stop(); }
-  WheelPlayer(const WheelPlayer&) = delete;
-  WheelPlayer& operator=(const WheelPlayer&) = delete;
-
-  [[nodiscard]] std::string start() {
-    if (auto error = bus_->open(); !error.empty()) return error;
-    thread_ = std::thread([this] {
-      play();
-      finished_ = true;
-    });
-    return {};
-  }
-  void stop() {
-    {
-      std::lock_guard lock(mutex_);
-      stop_ = true;
-    }
-    changed_.notify_all();
-    if (thread_.joinable()) thread_.join();
-  }
-  [[nodiscard]] std::uint64_t sent() const { return sent_.load(); }
-  [[nodiscard]] std::uint64_t dropped() const { return dropped_.load(); }
-  /// Every frame was sent (or the player stopped).
-  [[nodiscard]] bool finished() const { return finished_.load(); }
-
- private:
-  void play() {
-    if (frames_.empty()) return;
-    const auto start = std::chrono::steady_clock::now();
-    const std::int64_t first_ns = frames_.front().stamp_ns;
-    for (const hal::CanFrame& frame : frames_) {
-      const auto offset = std::chrono::nanoseconds(static_cast<std::int64_t>(static_cast<double>(frame.stamp_ns - first_ns) / rate_));
-      {
-        std::unique_lock lock(mutex_);
-        if (changed_.wait_until(lock, start + offset, [this] { return stop_; })) return;
-      }
-      if (bus_->send(frame) == hal::ReadStatus::kOk) {
-        ++sent_;
-      } else {
-        ++dropped_;
-      }
-    }
-  }
-
-  const std::vector<hal::CanFrame>& frames_;
-  double rate_;
-  std::unique_ptr<socketcan::SocketCanBus> bus_;
-  std::mutex mutex_;
-  std::condition_variable changed_;
-  bool stop_ = false;
-  std::atomic<std::uint64_t> sent_{0};
-  std::atomic<std::uint64_t> dropped_{0};
-  std::atomic<bool> finished_{false};
-  std::thread thread_;
-};
-
 }  // namespace
 
 int run_live(const RunArgs& args) {
@@ -273,39 +65,16 @@ int run_live(const RunArgs& args) {
     return kExitInput;
   }
   slam::SlamConfig slam_config;
-  if (auto error = load_slam_config(args.config, slam_config); !error.empty()) {
-    std::cerr << "error: " << error << "\n";
-    return kExitInput;
-  }
   nav::WheelOdometryConfig wheel_config;
-  if (auto error = load_wheel_config(args.config, wheel_config); !error.empty()) {
-    std::cerr << "error: " << error << "\n";
-    return kExitInput;
-  }
-  slam_config.mode = kDefaultMode;
-  if (!args.mode.empty()) {
-    const auto mode = parse_mode(args.mode);
-    if (!mode) {
-      std::cerr << "error: unknown mode '" << args.mode << "' (baseline, photometric, geometric, fused)\n";
-      return kExitUsage;
-    }
-    slam_config.mode = *mode;
-  }
-  if (!mode_implemented(slam_config.mode)) {
-    std::cerr << "error: mode '" << slam::to_string(slam_config.mode) << "' is not implemented yet\n";
-    return kExitNotAvailable;
+  if (const int code = load_pipeline_config(args.config, args.mode, slam_config, wheel_config); code != kExitOk) {
+    return code;
   }
   const fs::path out = args.out.empty() ? robot.output_dir : args.out;
   if (out.empty()) {
     std::cerr << "error: " << args.config.string() << ": no output directory (output.dir or --out)\n";
     return kExitUsage;
   }
-  std::error_code ec;
-  fs::create_directories(out, ec);
-  if (!fs::is_directory(out)) {
-    std::cerr << "error: cannot create output directory " << out << ": " << ec.message() << "\n";
-    return kExitOutput;
-  }
+  if (const int code = make_output_directory(out); code != kExitOk) return code;
 
   // Set-up: everything that may fail or allocate happens here.
   replay::Recording recording;
@@ -363,24 +132,18 @@ int run_live(const RunArgs& args) {
             << ", calibration " << calibration.source << "\n"
             << describe_slam_config(slam_config) << std::flush;
 
-  slam::SlamLoop loop(slam_config, calibration);
   const Eigen::Isometry3d T_base_cam = calibration.rgb.T_base_cam;
   const Eigen::Isometry3d T_cam_base = T_base_cam.inverse();
-  eval::Trajectory trajectory;
-  trajectory.reserve(robot.max_trajectory_poses);
-  std::uint64_t trajectory_overflow = 0;
-  int failed_frames = 0;
 
   const StopSignals signals;
-  Mailbox mailbox;
+  nav::PoseMailbox mailbox;
   std::atomic<bool> stop_output{false};
-  OutputResult output;
   // Wheel odometry from the bus as the motion prior: a live camera's stamps and the bus's are
   // both CLOCK_MONOTONIC; a replayed recording's wheel frames are played onto the bus and take
   // their recorded stamps back, the replay camera's clock. A replay without played frames has no
   // wheel clock in common with its camera: no prior.
   const bool play_wheels = replay_camera != nullptr && robot.play_wheel_frames && !recording.can_frames.empty();
-  LiveWheels wheels;
+  nav::LiveWheels wheels;
   std::string wheels_off_reason;
   if (!calibration.wheels) {
     wheels_off_reason = "the calibration has no wheels section";
@@ -391,24 +154,47 @@ int run_live(const RunArgs& args) {
       std::cerr << "error: wheel odometry: " << error << "\n";
       return kExitInput;
     }
-    wheels.prior.emplace(wheel_config, *calibration.wheels, T_base_cam);
-    if (play_wheels) wheels.recorded = &recording.can_frames;
+    wheels.enable(wheel_config, *calibration.wheels, T_base_cam, play_wheels ? &recording.can_frames : nullptr);
   }
-  std::cout << "wheels: " << (wheels.prior ? "CAN frames from " + robot.can_interface + " as the motion prior"
-                                           : "not used (" + wheels_off_reason + ")")
+  std::cout << "wheels: " << (wheels.enabled() ? "CAN frames from " + robot.can_interface + " as the motion prior"
+                                               : "not used (" + wheels_off_reason + ")")
             << "\n"
-            << (wheels.prior ? describe_wheel_config(wheel_config) : std::string()) << std::flush;
-  std::thread sender([&] { output_thread(robot, wheel_can_id, mailbox, wheels, stop_output, output); });
-
+            << (wheels.enabled() ? describe_wheel_config(wheel_config) : std::string()) << std::flush;
   std::optional<WheelPlayer> player;
+  ReceivedWheels received_wheels(wheels, player);
+  PipelineOptions pipeline_options;
+  pipeline_options.max_frames = robot.max_trajectory_poses;
+  pipeline_options.recording_clock = replay_camera != nullptr;
+  FramePipeline pipeline(slam_config, calibration, wheels.enabled() ? &received_wheels : nullptr, pipeline_options);
+  slam::SlamLoop& loop = pipeline.loop();
+
+  nav::PoseOutputOptions output_options;
+  output_options.broadcast = robot.output;
+  output_options.wheel_can_id = wheel_can_id;
+  nav::PoseOutputCounters pose_counters;
+  nav::WheelInputCounters wheel_counters;
+  hal::CanBusStatistics bus_statistics;
+  std::thread sender([&] {
+    socketcan::SocketCanOptions options;
+    options.interface_name = robot.can_interface;
+    options.filters.push_back({wheel_can_id, 0x7FF, false});
+    socketcan::SocketCanBus bus(options);
+    // open() was checked above on an identical bus; a failure here is counted as faults.
+    (void)bus.open();
+    const hal::MonotonicClock clock;
+    nav::PoseOutput output(output_options, bus, clock, mailbox, wheels);
+    output.run(stop_output);
+    pose_counters = output.pose_counters();
+    wheel_counters = output.wheel_counters();
+    bus_statistics = bus.statistics();
+    bus.close();
+  });
+
   if (play_wheels) {
     // A frame played before the output thread's socket is bound never reaches it (the first wheel
     // frame, whose stamp starts the odometry, went missing that way under load).
-    {
-      std::unique_lock lock(wheels.mutex);
-      if (!wheels.advanced.wait_for(lock, std::chrono::seconds(5), [&] { return wheels.receiving; })) {
-        std::cerr << "warning: the CAN receiver did not start within 5 s; early wheel frames may be missed\n";
-      }
+    if (!wheels.wait_receiving(std::chrono::seconds(5))) {
+      std::cerr << "warning: the CAN receiver did not start within 5 s; early wheel frames may be missed\n";
     }
     player.emplace(recording.can_frames, robot.can_interface, robot.replay_rate);
     if (auto error = player->start(); !error.empty()) {
@@ -416,8 +202,6 @@ int run_live(const RunArgs& args) {
       player.reset();
     }
   }
-  StatusCounts status_counts;
-  nav::MotionPrior prior;
 
   hal::RgbdFrame frame;
   bool interrupted = false;
@@ -440,48 +224,19 @@ int run_live(const RunArgs& args) {
       for (const auto& warning : replay_camera->take_warnings()) std::cerr << "warning: " << warning << "\n";
     }
     if (status == hal::ReadStatus::kEndOfStream) {
-      std::cout << "end of stream after " << trajectory.size() << " frames" << std::endl;
+      std::cout << "end of stream after " << pipeline.trajectory().size() << " frames" << std::endl;
       end_time = std::chrono::steady_clock::now();
-      std::lock_guard lock(mailbox.mutex);
-      mailbox.end_of_stream = true;
+      mailbox.set_end_of_stream();
       continue;
     }
     if (status != hal::ReadStatus::kOk) {
-      std::lock_guard lock(mailbox.mutex);
-      mailbox.camera_fault = status == hal::ReadStatus::kFault;
+      mailbox.set_camera_fault(status == hal::ReadStatus::kFault);
       continue;
     }
     const std::int64_t capture_ns = hal::MonotonicClock{}.now_ns();
-    const nav::MotionPrior* frame_prior = nullptr;
-    const std::int64_t wheel_stamp_ns = replay_camera != nullptr ? nav::recording_stamp_ns(frame.stamp_s) : frame.stamp_ns;
-    if (wheels.prior) {
-      std::unique_lock lock(wheels.mutex);
-      // The motion up to the frame is known once a wheel frame at or after its stamp is in. A live
-      // base: wait for it up to three wheel periods, while wheel frames are arriving at all. A
-      // played recording: wait while the player plays (a lossless replay camera may run ahead
-      // of the recorded timing the wheel frames keep), so that every frame has the prior it has
-      // in `replay`.
-      const bool playing = player && !player->finished();
-      const auto arriving = [&] { return hal::MonotonicClock{}.now_ns() - wheels.newest_arrival_ns < 200'000'000; };
-      (void)wheels.advanced.wait_for(lock, playing ? std::chrono::milliseconds(1000) : std::chrono::milliseconds(30), [&] {
-        return wheels.prior->odometry().newest_stamp_ns() >= wheel_stamp_ns ||
-               (playing ? player->finished() : !arriving());
-      });
-      if (const nav::MotionPrior* wheel_prior = wheels.prior->prior_for(wheel_stamp_ns)) {
-        prior = *wheel_prior;
-        frame_prior = &prior;
-      }
-    }
-    const slam::FrameResult result = loop.process(frame, frame_prior);
-    status_counts.add(result);
+    const slam::FrameResult result = pipeline.process(frame);
     const bool registered =
         result.status == slam::FrameStatus::kTracking || result.status == slam::FrameStatus::kFirstFrame;
-    if (!registered) ++failed_frames;
-    if (trajectory.size() < robot.max_trajectory_poses) {
-      trajectory.push_back({frame.stamp_s, result.T_world_cam});
-    } else {
-      ++trajectory_overflow;
-    }
     nav::PoseSample sample;
     // The map frame is the base frame at the first camera frame.
     sample.T_map_base = T_base_cam * result.T_world_cam * T_cam_base;
@@ -493,15 +248,10 @@ int run_live(const RunArgs& args) {
     if (result.status != slam::FrameStatus::kFirstFrame && result.features > 0) {
       sample.inlier_percent = static_cast<std::uint8_t>(std::min(100, 100 * result.inliers / result.features));
     }
-    std::lock_guard lock(mailbox.mutex);
-    if (result.graph_applied) {
-      // The correction in base frames: T_map_base = T_base_cam * T_world_cam * T_cam_base.
-      mailbox.pending_correction = T_base_cam * result.map_correction * T_cam_base * mailbox.pending_correction;
-    }
-    mailbox.sample = sample;
-    mailbox.wheel_stamp_ns = wheels.prior ? std::optional<std::int64_t>(wheel_stamp_ns) : std::nullopt;
-    ++mailbox.sample_count;
-    mailbox.camera_fault = false;
+    // The correction in base frames: T_map_base = T_base_cam * T_world_cam * T_cam_base.
+    const Eigen::Isometry3d correction = T_base_cam * result.map_correction * T_cam_base;
+    mailbox.post(sample, result.graph_applied ? &correction : nullptr,
+                 wheels.enabled() ? std::optional<std::int64_t>(pipeline.wheel_stamp_ns(frame)) : std::nullopt);
   }
 
   if (player) player->stop();
@@ -518,11 +268,11 @@ int run_live(const RunArgs& args) {
     exit_code = kExitOutput;
   };
   // The trajectory is what the pose output sent; the map takes the last optimised key-frame poses.
-  loop.finish();
-  report_error(eval::write_tum_trajectory(out / "trajectory.txt", trajectory));
+  pipeline.finish();
+  report_error(eval::write_tum_trajectory(out / "trajectory.txt", pipeline.trajectory()));
   report_error(hal::write_file_atomically(out / "map.ply", std::string_view(loop.map().to_ply())));
 
-  JsonWriter json;
+  eval::JsonWriter json;
   json.begin_object();
   json.string("config", args.config.string());
   json.integer("keyframes", loop.keyframes());
@@ -537,35 +287,35 @@ int run_live(const RunArgs& args) {
     json.integer("camera_reopens", static_cast<long long>(c.reopens));
   }
   json.string("can_interface", robot.can_interface);
-  json.integer("frames", static_cast<long long>(trajectory.size()));
-  json.integer("failed_frames", failed_frames);
+  json.integer("frames", static_cast<long long>(pipeline.trajectory().size()));
+  json.integer("failed_frames", pipeline.failed_frames());
   // The sender has stopped: the wheels need no lock any more.
-  write_status_and_wheels(json, status_counts, wheels.prior ? &*wheels.prior : nullptr, loop.wheel_slip_events(),
+  eval::write_status_and_wheels(json, pipeline.status_counts(), wheels.prior(), loop.wheel_slip_events(),
                           wheels_off_reason);
-  if (wheels.prior) json.integer("wheel_frames_unmatched", static_cast<long long>(output.wheels.unmatched));
+  if (wheels.enabled()) json.integer("wheel_frames_unmatched", static_cast<long long>(wheel_counters.unmatched));
   json.integer("skipped_frames", replay_counters.corrupt);
   json.integer("dropped_frames", replay_counters.dropped);
-  json.integer("trajectory_overflow", static_cast<long long>(trajectory_overflow));
-  json.integer("pose_cycles", static_cast<long long>(output.pose.pose_cycles));
-  json.integer("lost_cycles", static_cast<long long>(output.pose.lost_cycles));
-  json.integer("heartbeats", static_cast<long long>(output.pose.heartbeats));
-  json.integer("tx_dropped", static_cast<long long>(output.pose.tx_dropped));
-  json.integer("tx_faults", static_cast<long long>(output.pose.tx_faults));
+  json.integer("trajectory_overflow", static_cast<long long>(pipeline.trajectory_overflow()));
+  json.integer("pose_cycles", static_cast<long long>(pose_counters.pose_cycles));
+  json.integer("lost_cycles", static_cast<long long>(pose_counters.lost_cycles));
+  json.integer("heartbeats", static_cast<long long>(pose_counters.heartbeats));
+  json.integer("tx_dropped", static_cast<long long>(pose_counters.tx_dropped));
+  json.integer("tx_faults", static_cast<long long>(pose_counters.tx_faults));
   json.integer("wheel_frames_played", player ? static_cast<long long>(player->sent()) : 0LL);
-  json.integer("wheel_frames_received", static_cast<long long>(output.wheels.frames));
-  json.integer("wheel_counter_gaps", static_cast<long long>(output.wheels.counter_gaps));
-  json.integer("bus_frames_tx", static_cast<long long>(output.bus.frames_tx));
-  json.integer("bus_error_frames", static_cast<long long>(output.bus.error_frames));
-  json.integer("bus_faults", static_cast<long long>(output.bus.faults));
+  json.integer("wheel_frames_received", static_cast<long long>(wheel_counters.frames));
+  json.integer("wheel_counter_gaps", static_cast<long long>(wheel_counters.counter_gaps));
+  json.integer("bus_frames_tx", static_cast<long long>(bus_statistics.frames_tx));
+  json.integer("bus_error_frames", static_cast<long long>(bus_statistics.error_frames));
+  json.integer("bus_faults", static_cast<long long>(bus_statistics.faults));
   json.boolean("interrupted", interrupted);
   json.end_object();
   report_error(hal::write_file_atomically(out / "report.json", std::string_view(json.str())));
 
   std::printf("frames %zu  failed %d  pose cycles %llu (lost %llu)  heartbeats %llu  wheel frames in %llu%s\n",
-              trajectory.size(), failed_frames, static_cast<unsigned long long>(output.pose.pose_cycles),
-              static_cast<unsigned long long>(output.pose.lost_cycles),
-              static_cast<unsigned long long>(output.pose.heartbeats),
-              static_cast<unsigned long long>(output.wheels.frames), interrupted ? "  (interrupted)" : "");
+              pipeline.trajectory().size(), pipeline.failed_frames(), static_cast<unsigned long long>(pose_counters.pose_cycles),
+              static_cast<unsigned long long>(pose_counters.lost_cycles),
+              static_cast<unsigned long long>(pose_counters.heartbeats),
+              static_cast<unsigned long long>(wheel_counters.frames), interrupted ? "  (interrupted)" : "");
   std::printf("outputs in %s\n", out.string().c_str());
   return exit_code;
 }

@@ -3,9 +3,9 @@
 # through `rankslam run` with the replay camera and the SocketCAN driver on vcan0, its wheel
 # frames played onto vcan0; candump captures the bus; pose_log_check then requires pose cycles
 # at the configured rate that decode to the trajectory `rankslam replay` wrote for the same
-# recording, moved on by the wheels since each frame, within 1 mm and 0.1°, LOST after the
-# watchdog once the recording ends with the heartbeat going on, and trajectory and map flushed
-# after SIGTERM.
+# recording with its wheel frames, moved on by the wheels since each frame, within 1 mm and
+# 0.1°, LOST after the watchdog once the recording ends with the heartbeat going on, and
+# trajectory and map flushed after SIGTERM.
 #
 #   test/vm/pose_output_test.sh RANKSLAM POSE_LOG_CHECK WORK_DIR [FRAMES]
 #
@@ -23,9 +23,10 @@ mkdir -p "$work"
 "$rankslam" simulate corridor-loop --frames "$frames" --out "$work/recording" > "$work/simulate.log"
 # The test is about the CAN path, not registration: baseline tracks the corridor's first
 # metres reliably, so the compared trajectory moves. `run` takes its wheel prior from the frames
-# played onto vcan0 and received back, so the reference is replay's run with the same wheel
-# frames from can.log.
+# played onto vcan0 and received back; the reference is replay with wheels, its can.log frames
+# reaching the same odometry through the replay CAN bus (hal::replay::ReplayCanBus).
 "$rankslam" replay "$work/recording" --out "$work/replay" --quiet --mode baseline > "$work/replay.log"
+grep -q '"wheels_used": true' "$work/replay/report.json" || { echo "FAIL: the reference replay ran without wheels"; exit 1; }
 
 cat > "$work/robot.yaml" <<YAML
 camera:

@@ -1,10 +1,10 @@
-#include "json_writer.hpp"
+#include "rankslam/eval/json_writer.hpp"
 
 #include <gtest/gtest.h>
 
 #include <limits>
 
-namespace rankslam::app {
+namespace rankslam::eval {
 namespace {
 
 TEST(JsonWriter, WritesNestedObjectsNullsAndEscapes) {
@@ -21,4 +21,4 @@ TEST(JsonWriter, WritesNestedObjectsNullsAndEscapes) {
 }
 
 }  // namespace
-}  // namespace rankslam::app
+}  // namespace rankslam::eval

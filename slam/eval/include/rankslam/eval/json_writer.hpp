@@ -6,7 +6,7 @@
 #include <string>
 #include <string_view>
 
-namespace rankslam::app {
+namespace rankslam::eval {
 
 /// Minimal JSON object writer for report.json: keys in insertion order, numbers printed with
 /// enough digits to round-trip, non-finite numbers and empty optionals as null.
@@ -101,4 +101,4 @@ class JsonWriter {
   bool first_ = true;
 };
 
-}  // namespace rankslam::app
+}  // namespace rankslam::eval

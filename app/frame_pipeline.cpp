@@ -1,0 +1,80 @@
+#include "frame_pipeline.hpp"
+
+namespace rankslam::app {
+
+bool ReplayedWheels::prior_for(std::int64_t stamp_ns, nav::MotionPrior& prior) {
+  // The bus releases the wheel frames up to the camera frame's stamp and the first one after
+  // it: the motion up to the stamp is known once the next wheel frame is in (at 100 Hz, at most
+  // 10 ms later; a live camera frame takes longer than that to arrive).
+  bus_.release_through(stamp_ns);
+  hal::CanFrame frame;
+  while (bus_.receive(frame, std::chrono::milliseconds(0)) == hal::ReadStatus::kOk) (void)wheels_.update(frame);
+  const nav::MotionPrior* found = wheels_.prior_for(stamp_ns);
+  if (found == nullptr) return false;
+  prior = *found;
+  return true;
+}
+
+bool ReceivedWheels::prior_for(std::int64_t stamp_ns, nav::MotionPrior& prior) {
+  const bool playing = player_ && !player_->finished();
+  const auto keep_waiting = [&](std::int64_t newest_arrival_ns) {
+    return playing ? !player_->finished() : hal::MonotonicClock{}.now_ns() - newest_arrival_ns < 200'000'000;
+  };
+  return wheels_.prior_for(stamp_ns, playing ? std::chrono::milliseconds(1000) : std::chrono::milliseconds(30),
+                           keep_waiting, prior);
+}
+
+FramePipeline::FramePipeline(const slam::SlamConfig& config, const hal::Calibration& calibration, WheelSource* wheels,
+                             const PipelineOptions& options)
+    : options_(options), loop_(config, calibration), wheels_(wheels) {
+  loop_.set_synchronous_backend(options.synchronous_backend);
+  trajectory_.reserve(options.max_frames);
+  if (options.frame_log) {
+    frame_records_.reserve(options.max_frames);
+    frame_ms_.reserve(options.max_frames);
+    for (auto& stage : stage_ms_) stage.reserve(options.max_frames);
+    keyframe_links_.reserve(options.max_frames);
+  }
+}
+
+std::int64_t FramePipeline::wheel_stamp_ns(const hal::RgbdFrame& frame) const {
+  return options_.recording_clock ? nav::recording_stamp_ns(frame.stamp_s) : frame.stamp_ns;
+}
+
+slam::FrameResult FramePipeline::process(const hal::RgbdFrame& frame) {
+  const nav::MotionPrior* prior = nullptr;
+  if (wheels_ != nullptr && wheels_->prior_for(wheel_stamp_ns(frame), prior_)) prior = &prior_;
+  const auto start = std::chrono::steady_clock::now();
+  slam::FrameResult result = loop_.process(frame, prior);
+  const auto end = std::chrono::steady_clock::now();
+  status_counts_.add(result);
+  if (result.status == slam::FrameStatus::kFailed || result.status == slam::FrameStatus::kWheels) ++failed_frames_;
+  const bool kept = trajectory_.size() < options_.max_frames;
+  if (kept) {
+    trajectory_.push_back({frame.stamp_s, result.T_world_cam});
+  } else {
+    ++trajectory_overflow_;
+  }
+  if (options_.frame_log && kept) {
+    frame_ms_.push_back(std::chrono::duration<double, std::milli>(end - start).count());
+    for (std::size_t i = 0; i < slam::StageTimes::kCount; ++i) stage_ms_[i].push_back(result.times.ms[i]);
+    frame_records_.push_back(eval::frame_record(frame.stamp_s, result));
+    keyframe_links_.push_back({result.keyframe_node, result.keyframe_generation, result.T_keyframe_cam});
+    for (auto i = static_cast<int>(closures_.size()); i < loop_.loop_closures(); ++i) {
+      if (const slam::LoopClosure* closure = loop_.loop_closure(i); closure != nullptr) closures_.push_back(*closure);
+    }
+  }
+  return result;
+}
+
+void FramePipeline::finish() {
+  loop_.finish();
+  if (!options_.frame_log) return;
+  for (std::size_t i = 0; i < trajectory_.size(); ++i) {
+    const KeyframeLink& link = keyframe_links_[i];
+    Eigen::Isometry3d optimized;
+    if (loop_.optimized_pose(link.node, link.generation, link.T_keyframe_cam, optimized)) trajectory_[i].T_world_cam = optimized;
+  }
+}
+
+}  // namespace rankslam::app

@@ -1,0 +1,69 @@
+#pragma once
+
+#include "rankslam/eval/json_writer.hpp"
+#include "rankslam/eval/metrics.hpp"
+#include "rankslam/nav/wheel_prior.hpp"
+#include "rankslam/slam/slam_loop.hpp"
+
+#include <string>
+#include <string_view>
+#include <vector>
+
+namespace rankslam::eval {
+
+/// Frames by the status a consumer of the pose sees: TRACKING (registered), DEGRADED (the wheels
+/// carry the pose), LOST (neither: extrapolated or held).
+struct StatusCounts {
+  int tracking = 0;
+  int degraded = 0;
+  int lost = 0;
+  int disagreements = 0;   ///< registrations that disagreed with the wheels
+  int wheels_trusted = 0;  ///< of which the wheels overruled the registration
+  void add(const slam::FrameResult& result);
+};
+
+/// The report.json entries `replay` and `run` share: `status_counts`, and how the wheels fared
+/// (`wheels` null when they were not used, for `wheels_off_reason`).
+void write_status_and_wheels(JsonWriter& json, const StatusCounts& counts, const nav::WheelPrior* wheels,
+                             int slip_events, const std::string& wheels_off_reason);
+
+struct Percentiles {
+  double median = 0.0;
+  double p90 = 0.0;
+  double max = 0.0;
+};
+
+/// Median, 90th percentile and maximum (nearest rank); zeros for no values.
+[[nodiscard]] Percentiles percentiles(std::vector<double> values);
+
+/// `key: {"median", "p90", "max"}`.
+void write_percentiles(JsonWriter& json, std::string_view key, const Percentiles& p);
+
+/// One line of frames.csv.
+struct FrameRecord {
+  double stamp_s = 0.0;
+  slam::FrameStatus status = slam::FrameStatus::kFirstFrame;
+  int inliers = 0;
+  int photometric_matches = 0;
+  int photometric_inliers = 0;
+  int geometric_matches = 0;
+  int geometric_inliers = 0;
+  double photometric_weight = 0.0;
+  nav::WheelCheck wheels;
+};
+
+/// The frames.csv line of a processed frame.
+[[nodiscard]] FrameRecord frame_record(double stamp_s, const slam::FrameResult& result);
+
+/// Per-frame status and how vision compared with the wheels, for plots and checks.
+[[nodiscard]] std::string frames_csv(const std::vector<FrameRecord>& records);
+
+/// Whether a loop closure's measured relative pose is farther from the ground truth's than a
+/// correct closure ever is: it joined two places that are not where the graph now puts them.
+[[nodiscard]] bool is_false_closure(const RelativePoseError& error);
+
+/// Each accepted loop closure, with its error against the ground truth where there is one.
+[[nodiscard]] std::string loop_closures_csv(const std::vector<slam::LoopClosure>& closures,
+                                            const std::vector<RelativePoseError>& errors);
+
+}  // namespace rankslam::eval
