@@ -59,24 +59,8 @@ struct RecordArgs {
 [[nodiscard]] int run_live(const RunArgs& args);
 
 /// The registration `rankslam replay` and `run` use without --mode: fused, the one that holds
-/// where either kind of feature alone gets lost. Simulated corridor loop with wheels: ATE 1.7 cm
-/// fused, 62.6 cm photometric; zig-zag panels: photometric fails. On textured fr1_rpy_head
-/// photometric is the more accurate (0.0239 m against 0.0323 m).
+/// where either kind of feature alone gets lost (docs/results.md §1).
 inline constexpr slam::Mode kDefaultMode = slam::Mode::kFused;
-
-/// The mode named `name` ("baseline", "photometric", "geometric", "fused"), if any.
-[[nodiscard]] inline std::optional<slam::Mode> parse_mode(const std::string& name) {
-  for (const auto mode : {slam::Mode::kBaseline, slam::Mode::kPhotometric, slam::Mode::kGeometric, slam::Mode::kFused}) {
-    if (name == slam::to_string(mode)) return mode;
-  }
-  return std::nullopt;
-}
-
-/// Whether this build implements `mode`.
-[[nodiscard]] inline bool mode_implemented(slam::Mode mode) {
-  return mode == slam::Mode::kBaseline || mode == slam::Mode::kPhotometric || mode == slam::Mode::kGeometric ||
-         mode == slam::Mode::kFused;
-}
 
 /// The process' peak resident set size so far, MB (getrusage; 0 where unavailable).
 [[nodiscard]] inline double peak_rss_mb() {

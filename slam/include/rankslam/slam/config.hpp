@@ -43,6 +43,15 @@ enum class IcpMode : std::uint8_t {
   return "unknown";
 }
 
+/// The mode named `text` ("baseline", "photometric", "geometric", "fused"); nullopt for anything
+/// else.
+[[nodiscard]] constexpr std::optional<Mode> parse_mode(std::string_view text) {
+  for (const Mode mode : {Mode::kBaseline, Mode::kPhotometric, Mode::kGeometric, Mode::kFused}) {
+    if (text == to_string(mode)) return mode;
+  }
+  return std::nullopt;
+}
+
 /// "off", "point_to_point" or "point_to_plane"; nullopt for anything else.
 [[nodiscard]] constexpr std::optional<IcpMode> parse_icp_mode(std::string_view text) {
   for (const IcpMode mode : {IcpMode::kOff, IcpMode::kPointToPoint, IcpMode::kPointToPlane}) {
