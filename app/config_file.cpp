@@ -72,12 +72,7 @@ std::string load_slam_config(const std::filesystem::path& path, slam::SlamConfig
   const YAML::Node section = root["slam"];
   if (!section) return {};
   if (!section.IsMap()) return path.string() + ": 'slam' must be a map of parameters";
-  if (const YAML::Node icp = section["icp_mode"]) {
-    const auto parsed = icp.IsScalar() ? slam::parse_icp_mode(icp.Scalar()) : std::nullopt;
-    if (!parsed) return path.string() + ": slam.icp_mode must be off, point_to_point or point_to_plane";
-    config.icp_mode = *parsed;
-  }
-  if (auto error = load_section(path, section, "slam", {"icp_mode"}, config); !error.empty()) return error;
+  if (auto error = load_section(path, section, "slam", {}, config); !error.empty()) return error;
   if (config.min_depth_m >= config.max_depth_m) return path.string() + ": slam.min_depth_m must be below slam.max_depth_m";
   return {};
 }
@@ -85,7 +80,6 @@ std::string load_slam_config(const std::filesystem::path& path, slam::SlamConfig
 std::string describe_slam_config(slam::SlamConfig config) {
   std::ostringstream text;
   text << "slam.mode = " << slam::to_string(config.mode) << "\n";
-  text << "slam.icp_mode = " << slam::to_string(config.icp_mode) << "  # ICP refinement after the feature registration\n";
   config.visit_parameters([&](const char* name, auto& field, auto, auto, const char* unit, const char* doc) {
     text << "slam." << name << " = " << field << (unit[0] != '\0' ? " " : "") << unit << "  # " << doc << "\n";
   });
@@ -100,7 +94,6 @@ std::string describe_slam_config(slam::SlamConfig config) {
 std::string slam_config_json(slam::SlamConfig config) {
   std::ostringstream text;
   text << "\"mode\": \"" << slam::to_string(config.mode) << "\"";
-  text << ", \"icp_mode\": \"" << slam::to_string(config.icp_mode) << "\"";
   config.visit_parameters([&](const char* name, auto& field, auto, auto, const char*, const char*) {
     text << ", \"" << name << "\": " << field;
   });

@@ -14,18 +14,6 @@ namespace {
 
 using enum StageTimes::Stage;
 
-IcpSettings icp_settings(const SlamConfig& config) {
-  IcpSettings settings;
-  settings.mode = config.icp_mode;
-  settings.max_depth_m = config.max_depth_m;
-  settings.voxel_m = config.icp_voxel_m;
-  settings.pixel_stride = config.icp_pixel_stride;
-  settings.max_correspondence_m = config.icp_max_correspondence_m;
-  settings.max_iterations = config.icp_max_iterations;
-  settings.max_source_points = config.icp_max_source_points;
-  return settings;
-}
-
 Registrar::Velocity velocity_of(const Eigen::Isometry3d& motion, double dt_s) {
   const Eigen::AngleAxisd rotation(motion.rotation());
   Registrar::Velocity velocity;
@@ -42,16 +30,9 @@ FeatureTracker::FeatureTracker(const TrackerParts& parts, bool fused)
       fused_(fused),
       orb_(config_, parts.camera),
       infrared_orb_(config_, parts.camera, config_.ir_orb_fast_threshold),
-      icp_(icp_settings(config_), parts.camera),
       motion_(config_) {
   const auto capacity = static_cast<std::size_t>(config_.orb_features) * 2;
-  for (auto& tracked : frames_) {
-    tracked.features.reserve(capacity);
-    if (config_.icp_mode != IcpMode::kOff) {
-      tracked.cloud.points.reserve(icp_.cloud_capacity());
-      tracked.cloud.normals.reserve(icp_.cloud_capacity());
-    }
-  }
+  for (auto& tracked : frames_) tracked.features.reserve(capacity);
   bridge_.reserve(capacity);
   if (!fused_) return;
   if (const std::string error = parts_.geometric.configure(parts.camera, config_.geometric_frontend(), {}, &parts_.team);
@@ -73,7 +54,7 @@ FeatureTracker::FeatureTracker(const TrackerParts& parts, bool fused)
 
 void FeatureTracker::extract(const hal::RgbdFrame& frame, const cv::Mat* image, ImageSource source,
                              bool have_depth, const nav::MotionPrior* prior, FrameResult& result) {
-  auto stage_start = SteadyClock::now();
+  const auto stage_start = SteadyClock::now();
   TrackedFrame& tracked = frames_[static_cast<std::size_t>(current_)];
   const auto extract_photometric = [&] {
     if (image != nullptr && have_depth) {
@@ -94,23 +75,12 @@ void FeatureTracker::extract(const hal::RgbdFrame& frame, const cv::Mat* image, 
     extract_photometric();
   }
   tracked.features.source = source;
-  tracked.id = ++frame_counter_;
   const double frame_dt_s =
       previous_ >= 0 ? std::clamp(frame.stamp_s - previous_stamp_s_, 0.005, 0.5) : 1.0 / 30.0;
   previous_stamp_s_ = frame.stamp_s;
   tracked.velocity = velocity_of(motion_.predicted(prior), frame_dt_s);
   result.features = static_cast<int>(tracked.features.size()) + (fused_ ? tracked.geometric.count : 0);
   result.times.ms[kFeatures] = elapsed_ms(stage_start);
-  if (config_.icp_mode != IcpMode::kOff) {
-    stage_start = SteadyClock::now();
-    if (have_depth) {
-      icp_.build_cloud(frame.depth, tracked.cloud);
-    } else {
-      tracked.cloud.points.clear();
-      tracked.cloud.normals.clear();
-    }
-    result.times.ms[kIcp] = elapsed_ms(stage_start);
-  }
 }
 
 void FeatureTracker::track(const hal::RgbdFrame& frame, const nav::MotionPrior* prior, FrameResult& result) {
@@ -224,13 +194,10 @@ const FeatureTracker::TrackedFrame* FeatureTracker::register_current(const hal::
       }
     }
   }
-  if (target != nullptr) {
-    if (config_.icp_mode != IcpMode::kOff) refine_with_icp(*target, tracked, result);
-    if (prior != nullptr &&
-        !parts_.arbiter.arbitrate(*prior, previous.T_world_cam, result.inliers, result.T_world_cam, result.wheels)) {
-      target = nullptr;
-      reason = "registration disagrees with the wheels";
-    }
+  if (target != nullptr && prior != nullptr &&
+      !parts_.arbiter.arbitrate(*prior, previous.T_world_cam, result.inliers, result.T_world_cam, result.wheels)) {
+    target = nullptr;
+    reason = "registration disagrees with the wheels";
   }
   if (new_reference_ && target == &reference && result.wheels.fused &&
       std::abs(result.wheels.yaw_residual_deg) >= parts_.arbiter.least_slip_turn_deg()) {
@@ -246,24 +213,6 @@ const FeatureTracker::TrackedFrame* FeatureTracker::register_current(const hal::
     new_reference_ = false;  // the reference stays: the next frame that sees it snaps back
   }
   return target;
-}
-
-void FeatureTracker::refine_with_icp(const TrackedFrame& target, const TrackedFrame& current, FrameResult& result) {
-  const auto stage_start = SteadyClock::now();
-  icp_.set_target(target.cloud, target.id);
-  const Eigen::Isometry3d T_target_current = target.T_world_cam.inverse() * result.T_world_cam;
-  const IcpResult refined = icp_.align(current.cloud, T_target_current);
-  if (refined.ok) {
-    // A large correction means ICP slid along a plane or into another minimum rather than
-    // refining the feature estimate.
-    const Eigen::Isometry3d correction = T_target_current.inverse() * refined.T_target_source;
-    if (correction.translation().norm() <= config_.icp_max_correction_m &&
-        lie::rotation_deg(correction) <= config_.icp_max_correction_deg) {
-      result.T_world_cam = target.T_world_cam * refined.T_target_source;
-      result.icp_refined = true;
-    }
-  }
-  result.times.ms[kIcp] += elapsed_ms(stage_start);
 }
 
 void FeatureTracker::chain_covariance(const TrackedFrame* target, const Matrix6d& target_covariance,

@@ -1,6 +1,5 @@
 #pragma once
 
-#include "rankslam/slam/icp.hpp"
 #include "rankslam/slam/motion_model.hpp"
 #include "rankslam/slam/tracker.hpp"
 
@@ -36,14 +35,12 @@ class FeatureTracker final : public Tracker {
   struct TrackedFrame {
     PhotometricFeatures features;
     geometry::GeometricFeatures geometric;  ///< Fused only.
-    VoxelCloud cloud;                       ///< Only with ICP on.
     Eigen::Isometry3d T_world_cam = Eigen::Isometry3d::Identity();
     /// Velocity at the frame, for its rolling-shutter correction.
     Registrar::Velocity velocity = Registrar::Velocity::Zero();
-    std::int64_t id = 0;  ///< Frame number: tells the ICP whether its target changed.
   };
 
-  /// Extracts the current frame's features (and ICP cloud) into the free slot.
+  /// Extracts the current frame's features into the free slot.
   void extract(const hal::RgbdFrame& frame, const cv::Mat* image, ImageSource source, bool have_depth,
                const nav::MotionPrior* prior, FrameResult& result);
   /// Registers the current frame against the reference, else the previous frame; returns the
@@ -51,7 +48,6 @@ class FeatureTracker final : public Tracker {
   [[nodiscard]] const TrackedFrame* register_current(const hal::RgbdFrame& frame, const cv::Mat* image,
                                                      ImageSource source, bool have_depth,
                                                      const nav::MotionPrior* prior, FrameResult& result);
-  void refine_with_icp(const TrackedFrame& target, const TrackedFrame& current, FrameResult& result);
   /// Sets current_covariance_: the frame registered against `target`, whose pose covariance
   /// relative to the latest key-frame is `target_covariance` (null: not registered, and
   /// `target_covariance` is the previous frame's).
@@ -65,7 +61,6 @@ class FeatureTracker final : public Tracker {
   const bool fused_;
   OrbFrontend orb_;
   OrbFrontend infrared_orb_;
-  IcpRefiner icp_;
   MotionModel motion_;
 
   // Reference, previous and current frame; the reference and the previous frame may be the same
@@ -76,7 +71,6 @@ class FeatureTracker final : public Tracker {
   int previous_ = -1;
   int current_ = -1;
   bool new_reference_ = false;
-  std::int64_t frame_counter_ = 0;
   double previous_stamp_s_ = 0.0;
   /// Features of the other image kind, at a frame where the kind switches.
   PhotometricFeatures bridge_;

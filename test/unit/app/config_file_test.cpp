@@ -84,19 +84,6 @@ TEST(ConfigFile, WheelOdometrySectionOverridesItsKeysAndNamesBadOnes) {
   EXPECT_EQ(nav::validate(extreme, hal::WheelGeometry{}), "");
 }
 
-TEST(ConfigFile, IcpModeIsANamedChoice) {
-  slam::SlamConfig config;
-  auto path = write_yaml("rankslam_cfg_icp.yaml", "slam:\n  icp_mode: point_to_plane\n");
-  ASSERT_EQ(load_slam_config(path, config), "");
-  EXPECT_EQ(config.icp_mode, slam::IcpMode::kPointToPlane);
-  EXPECT_NE(describe_slam_config(config).find("slam.icp_mode = point_to_plane"), std::string::npos);
-
-  path = write_yaml("rankslam_cfg_icp_bad.yaml", "slam:\n  icp_mode: plane\n");
-  const std::string error = load_slam_config(path, config);
-  EXPECT_NE(error.find("slam.icp_mode"), std::string::npos) << error;
-  EXPECT_NE(error.find("rankslam_cfg_icp_bad.yaml"), std::string::npos) << error;
-}
-
 TEST(ConfigFile, DescriptionListsEveryParameterWithItsDoc) {
   const std::string text = describe_slam_config(slam::SlamConfig{});
   EXPECT_NE(text.find("slam.orb_features = 1000  # ORB keypoints detected per frame"), std::string::npos) << text;

@@ -27,34 +27,10 @@ enum class Mode : std::uint8_t {
   return "unknown";
 }
 
-/// Optional dense refinement after the feature registration (docs/methods.md §2).
-enum class IcpMode : std::uint8_t {
-  kOff,
-  kPointToPoint,  ///< Closest points, closed-form rigid fit per iteration (Besl & McKay 1992).
-  kPointToPlane,  ///< Closest points, distance along the target normal (Chen & Medioni 1992).
-};
-
-[[nodiscard]] constexpr std::string_view to_string(IcpMode mode) {
-  switch (mode) {
-    case IcpMode::kOff: return "off";
-    case IcpMode::kPointToPoint: return "point_to_point";
-    case IcpMode::kPointToPlane: return "point_to_plane";
-  }
-  return "unknown";
-}
-
 /// The mode named `text` ("baseline", "photometric", "geometric", "fused"); nullopt for anything
 /// else.
 [[nodiscard]] constexpr std::optional<Mode> parse_mode(std::string_view text) {
   for (const Mode mode : {Mode::kBaseline, Mode::kPhotometric, Mode::kGeometric, Mode::kFused}) {
-    if (text == to_string(mode)) return mode;
-  }
-  return std::nullopt;
-}
-
-/// "off", "point_to_point" or "point_to_plane"; nullopt for anything else.
-[[nodiscard]] constexpr std::optional<IcpMode> parse_icp_mode(std::string_view text) {
-  for (const IcpMode mode : {IcpMode::kOff, IcpMode::kPointToPoint, IcpMode::kPointToPlane}) {
     if (text == to_string(mode)) return mode;
   }
   return std::nullopt;
@@ -68,10 +44,9 @@ enum class OrbImplementation : std::uint8_t {
 
 /// Parameters of the SLAM loop. Each is declared once, in visit_parameters(), with its range,
 /// unit and meaning; the configuration loader and the start-up printout both walk that list.
-/// `mode` and `icp_mode` are named choices, set apart from the numeric parameters.
+/// `mode` is a named choice, set apart from the numeric parameters.
 struct SlamConfig {
   Mode mode = Mode::kBaseline;
-  IcpMode icp_mode = IcpMode::kOff;
   /// Not read from configuration files: OpenCV's ORB is kept for side-by-side measurements.
   OrbImplementation orb_implementation = OrbImplementation::kFixedMemory;
 
@@ -122,13 +97,6 @@ struct SlamConfig {
   // room's sensor noise; the IR image's low contrast needs a FAST threshold of its own.
   double ir_switch_brightness = 30.0;
   int ir_orb_fast_threshold = 8;
-  int icp_max_iterations = 20;
-  double icp_max_correspondence_m = 0.05;
-  double icp_voxel_m = 0.02;
-  int icp_pixel_stride = 2;
-  int icp_max_source_points = 4000;
-  double icp_max_correction_m = 0.02;
-  double icp_max_correction_deg = 1.0;
   /// The wheel/vision arbiter (SlamLoop::process with a MotionPrior).
   nav::WheelArbiterConfig wheels;
   // Fused mode (docs/methods.md §6): a geometric keypoint is a voxel centroid, which moves by up
@@ -271,15 +239,6 @@ struct SlamConfig {
     visit("ir_switch_brightness", ir_switch_brightness, 0.0, 255.0, "level",
           "mean grey level of the colour image below which features come from the IR image (0: never)");
     visit("ir_orb_fast_threshold", ir_orb_fast_threshold, 1, 100, "", "FAST corner threshold on the IR image");
-    visit("icp_max_iterations", icp_max_iterations, 1, 100, "", "ICP iterations at most");
-    visit("icp_max_correspondence_m", icp_max_correspondence_m, 0.001, 1.0, "m", "ICP pairs farther apart are dropped");
-    visit("icp_voxel_m", icp_voxel_m, 0.001, 0.5, "m", "voxel edge of the ICP cloud filter");
-    visit("icp_pixel_stride", icp_pixel_stride, 1, 16, "px", "every n-th pixel in u and v feeds the ICP voxel grid");
-    visit("icp_max_source_points", icp_max_source_points, 100, 307200, "", "source points used per ICP iteration");
-    visit("icp_max_correction_m", icp_max_correction_m, 0.0, 1.0, "m",
-          "larger ICP corrections of the feature estimate are discarded");
-    visit("icp_max_correction_deg", icp_max_correction_deg, 0.0, 90.0, "deg",
-          "larger ICP rotation corrections of the feature estimate are discarded");
     wheels.visit_parameters(visit);
     visit("fused_geometric_leaf_sigma", fused_geometric_leaf_sigma, 0.0, 10.0, "leaf",
           "fused mode: position noise of a geometric keypoint added per frame, in voxel leaves");
