@@ -66,7 +66,7 @@ bool Backend::add_loop_closure(const graph::Edge& edge) {
 }
 
 void Backend::submit_pending() {
-  if (pending_ && !optimizer_.busy() && optimizer_.submit(graph_, config_.graph_iterations)) {
+  if (pending_ && !optimizer_.busy() && optimizer_.submit(graph_, config_.graph.iterations)) {
     pending_ = false;
     if (synchronous_) (void)optimizer_.wait_until_idle(kFinishWait);
   }
@@ -113,12 +113,12 @@ bool Backend::optimized_pose(int keyframe_node, std::uint32_t keyframe_generatio
 }
 
 void Backend::add_planar_edge(int from_node, int to_node, const Eigen::Isometry3d& T_from_to) {
-  if (!differential_drive_ || config_.graph_planar_sigma_m <= 0.0 || config_.graph_planar_sigma_deg <= 0.0) return;
+  if (!differential_drive_ || config_.graph.planar_sigma_m <= 0.0 || config_.graph.planar_sigma_deg <= 0.0) return;
   // A differential-drive base stays on the floor: between two key-frames its height, roll and
   // pitch do not change. The graph composes edges through covariances when it retires a node,
   // hence the floor on the free three (see planar_constraint).
-  const PlanarConstraint constraint = planar_constraint(T_from_to, T_base_cam_, config_.graph_planar_sigma_m,
-                                                        deg_to_rad(config_.graph_planar_sigma_deg));
+  const PlanarConstraint constraint = planar_constraint(T_from_to, T_base_cam_, config_.graph.planar_sigma_m,
+                                                        deg_to_rad(config_.graph.planar_sigma_deg));
   graph::Edge edge;
   edge.from = from_node;
   edge.to = to_node;
@@ -129,15 +129,15 @@ void Backend::add_planar_edge(int from_node, int to_node, const Eigen::Isometry3
 }
 
 void Backend::add_wheel_edge(int from_node, int to_node) {
-  if (!wheel_since_keyframe_valid_ || config_.graph_wheel_floor_m <= 0.0) return;
+  if (!wheel_since_keyframe_valid_ || config_.graph.wheel_floor_m <= 0.0) return;
   // The graph's error sits on the right, in the later key-frame: Σ_right = Ad(T⁻¹)·Σ_left·Ad(T⁻¹)ᵀ.
   // Motion a planar base cannot measure (roll, pitch, height) has no wheel variance; the floor
   // keeps the information finite there.
   const Matrix6d to_current = lie::adjoint(wheel_since_keyframe_.inverse());
   Matrix6d covariance = to_current * wheel_since_keyframe_covariance_ * to_current.transpose();
-  const double floor_rad = deg_to_rad(config_.graph_wheel_floor_deg);
+  const double floor_rad = deg_to_rad(config_.graph.wheel_floor_deg);
   covariance.diagonal().head<3>().array() += floor_rad * floor_rad;
-  covariance.diagonal().tail<3>().array() += config_.graph_wheel_floor_m * config_.graph_wheel_floor_m;
+  covariance.diagonal().tail<3>().array() += config_.graph.wheel_floor_m * config_.graph.wheel_floor_m;
   graph::Edge edge;
   edge.from = from_node;
   edge.to = to_node;
@@ -150,8 +150,8 @@ void Backend::add_wheel_edge(int from_node, int to_node) {
 Matrix6d Backend::sequential_information_floor() const {
   // One match's rotation information and a hundredth of its translation information: what the
   // surfaces leave free must not make the graph singular.
-  return graph::information_from_matches(1, deg_to_rad(config_.graph_match_sigma_deg),
-                                         10.0 * config_.graph_match_sigma_m);
+  return graph::information_from_matches(1, deg_to_rad(config_.graph.match_sigma_deg),
+                                         10.0 * config_.graph.match_sigma_m);
 }
 
 Matrix6d Backend::registration_information(int inliers, double noise_scale) const {
@@ -162,8 +162,8 @@ Matrix6d Backend::registration_information(int inliers, double noise_scale) cons
   // divides the information. Below 1 the noise model is merely conservative and the count
   // stands.
   const double variance_factor = std::max(1.0, noise_scale * noise_scale);
-  return graph::information_from_matches(inliers, deg_to_rad(config_.graph_match_sigma_deg),
-                                         config_.graph_match_sigma_m) /
+  return graph::information_from_matches(inliers, deg_to_rad(config_.graph.match_sigma_deg),
+                                         config_.graph.match_sigma_m) /
          variance_factor;
 }
 

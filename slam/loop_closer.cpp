@@ -18,10 +18,10 @@ LoopCloser::LoopCloser(const SlamConfig& config, KeyframeStore& store, Registrar
       registrar_(registrar),
       geometric_(geometric),
       backend_(backend),
-      threshold_(config.loop_initial_threshold, config.loop_threshold_deviations) {
+      threshold_(config.loop.initial_threshold, config.loop.threshold_deviations) {
   candidates_.reserve(static_cast<std::size_t>(config_.keyframe_capacity));
   // One key-frame adds at most loop_max_candidates closures; the log holds many key-frames' worth.
-  log_.resize(static_cast<std::size_t>(std::max(kClosureLogMinCapacity, 4 * config_.loop_max_candidates)));
+  log_.resize(static_cast<std::size_t>(std::max(kClosureLogMinCapacity, 4 * config_.loop.max_candidates)));
 }
 
 void LoopCloser::start(int slot, const geometry::GeometricFeatures* geometric) {
@@ -29,29 +29,29 @@ void LoopCloser::start(int slot, const geometry::GeometricFeatures* geometric) {
   tried_ = next_ = 0;
   search_slot_ = -1;
   search_geometric_ = nullptr;
-  if (config_.loop_max_candidates == 0) return;
+  if (config_.loop.max_candidates == 0) return;
   const StoredKeyframe& current = store_.slot(slot);
   for (int i = 0; i < store_.capacity(); ++i) {
     const StoredKeyframe& stored = store_.slot(i);
     if (!stored.used || i == slot || stored.node < 0) continue;
-    if (stored.sequence > current.sequence - config_.loop_min_keyframe_gap) continue;
+    if (stored.sequence > current.sequence - config_.loop.min_keyframe_gap) continue;
     if (geometric == nullptr && stored.photometric.source != current.photometric.source) continue;
     const double travelled_m = current.path_m - stored.path_m;
     const Eigen::Isometry3d relative = stored.T_world_cam.inverse() * current.T_world_cam;
     const double distance_m = relative.translation().norm();
-    if (distance_m > config_.loop_search_radius_m + config_.loop_drift_per_m * travelled_m ||
-        lie::rotation_deg(relative) > config_.loop_search_rotation_deg + config_.loop_drift_deg_per_m * travelled_m) {
+    if (distance_m > config_.loop.search_radius_m + config_.loop.drift_per_m * travelled_m ||
+        lie::rotation_deg(relative) > config_.loop.search_rotation_deg + config_.loop.drift_deg_per_m * travelled_m) {
       continue;
     }
     candidates_.push_back({distance_m, i, stored.sequence});
   }
   if (candidates_.empty()) return;
-  tried_ = std::min(candidates_.size(), static_cast<std::size_t>(config_.loop_max_candidates));
+  tried_ = std::min(candidates_.size(), static_cast<std::size_t>(config_.loop.max_candidates));
   const auto tried_end = candidates_.begin() + static_cast<std::ptrdiff_t>(tried_);
   std::partial_sort(candidates_.begin(), tried_end, candidates_.end());
   // The frame's own features serve a search that ends in this frame; one that carries over into
   // the next frames keeps a copy (the frame's buffer is reused).
-  const int per_frame = config_.loop_candidates_per_frame;
+  const int per_frame = config_.loop.candidates_per_frame;
   search_geometric_ = geometric;
   if (geometric != nullptr && per_frame > 0 && tried_ > static_cast<std::size_t>(per_frame)) {
     if (!search_copy_.assign_from(*geometric)) return;  // set-up sizes both alike: not reached
@@ -95,7 +95,7 @@ void LoopCloser::try_candidate(StoredKeyframe& stored, FrameResult& result) {
   // holding what the view leaves free, and is not taken unrefined.
   Eigen::Isometry3d T_stored_current = estimate.T_target_source;
   bool refined_by_icp = false;
-  if (with_geometry && registrar_.photometric_needs_refinement(config_.loop_icp_above_rotation_sigma_deg)) {
+  if (with_geometry && registrar_.photometric_needs_refinement(config_.loop.icp_above_rotation_sigma_deg)) {
     if (stored.geometric.cloud_count < 3 || search_geometric_->cloud_count < 3) return;
     geometry::IcpPrior feature_prior;
     feature_prior.T_previous_current = estimate.T_target_source;
@@ -109,7 +109,7 @@ void LoopCloser::try_candidate(StoredKeyframe& stored, FrameResult& result) {
     }
     // Refinement that could not fix what the features left loose keeps their error.
     if (least_information_ratio(refined.icp_information, feature_prior.information) <
-        config_.loop_icp_min_information_ratio) {
+        config_.loop.icp_min_information_ratio) {
       return;
     }
     T_stored_current = refined.T_previous_current;
@@ -119,8 +119,8 @@ void LoopCloser::try_candidate(StoredKeyframe& stored, FrameResult& result) {
   // Pose consistency: a true closure corrects the drift accumulated since the candidate, no more.
   const double travelled_m = current.path_m - stored.path_m;
   const Eigen::Isometry3d correction = predicted.inverse() * T_stored_current;
-  if (correction.translation().norm() > config_.loop_max_correction_m + config_.loop_drift_per_m * travelled_m ||
-      lie::rotation_deg(correction) > config_.loop_max_correction_deg + config_.loop_drift_deg_per_m * travelled_m) {
+  if (correction.translation().norm() > config_.loop.max_correction_m + config_.loop.drift_per_m * travelled_m ||
+      lie::rotation_deg(correction) > config_.loop.max_correction_deg + config_.loop.drift_deg_per_m * travelled_m) {
     return;
   }
   // Inlier geometry: the matches that fit must spread in two directions at least; matches on a
@@ -144,7 +144,7 @@ void LoopCloser::try_candidate(StoredKeyframe& stored, FrameResult& result) {
   const Eigen::Vector3d mean = sum / inliers;
   const Eigen::Matrix3d covariance = sum_sq / inliers - mean * mean.transpose();
   const Eigen::SelfAdjointEigenSolver<Eigen::Matrix3d> spread(covariance, Eigen::EigenvaluesOnly);
-  if (std::sqrt(std::max(0.0, spread.eigenvalues()(1))) < config_.loop_min_inlier_spread_m) return;
+  if (std::sqrt(std::max(0.0, spread.eigenvalues()(1))) < config_.loop.min_inlier_spread_m) return;
 
   graph::Edge edge;
   edge.from = stored.node;
@@ -154,8 +154,8 @@ void LoopCloser::try_candidate(StoredKeyframe& stored, FrameResult& result) {
     // As a sequential ICP-refined edge: what the surfaces fix, plus the feature inliers where
     // they fit their noise. A closure the view leaves free in a direction (a robot that turned
     // back to face the same plain corridor) then does not pull the chain along it.
-    edge.information = cloud_surface_information(*search_geometric_, config_.graph_icp_sigma_m);
-    if (estimate.noise_scale <= config_.fused_max_noise_scale) {
+    edge.information = cloud_surface_information(*search_geometric_, config_.graph.icp_sigma_m);
+    if (estimate.noise_scale <= config_.fused.max_noise_scale) {
       edge.information += correspondence_information(estimate.T_target_source, source_points, target_points,
                                                      correspondence_sigma_m) /
                           std::max(1.0, estimate.noise_scale * estimate.noise_scale);

@@ -5,7 +5,7 @@ namespace rankslam::slam {
 MapBuilder::MapBuilder(const SlamConfig& config, const camera::DepthCameraModel& camera)
     : config_(config),
       camera_(camera),
-      map_(config.map_voxel_m, static_cast<std::size_t>(config.map_max_points)),
+      map_(config.map.voxel_m, static_cast<std::size_t>(config.map.max_points)),
       sampler_(static_cast<std::mt19937::result_type>(config.seed)) {}
 
 void MapBuilder::add_keyframe(const hal::RgbdFrame& frame, FrameImages& images, const Eigen::Isometry3d& T_world_cam,
@@ -19,7 +19,7 @@ void MapBuilder::add_keyframe(const hal::RgbdFrame& frame, FrameImages& images, 
   if (!colour && grey == nullptr) return;
   // Attempts are capped so a frame with little depth cannot stall the loop.
   int added = 0;
-  for (int attempt = 0; attempt < config_.map_points_per_keyframe * 4 && added < config_.map_points_per_keyframe;
+  for (int attempt = 0; attempt < config_.map.points_per_keyframe * 4 && added < config_.map.points_per_keyframe;
        ++attempt) {
     const int u = column(sampler_);
     const int v = row(sampler_);

@@ -42,9 +42,9 @@ Registrar::Registrar(const SlamConfig& config, const camera::DepthCameraModel& c
       geometric_(geometric),
       estimator_(config, estimator, static_cast<std::size_t>(config.orb_features) * 2 +
                              static_cast<std::size_t>(geometry::FrontendCapacities{}.max_keypoints)) {
-  const double prior_rad = deg_to_rad(config_.fused_icp_prior_sigma_deg);
+  const double prior_rad = deg_to_rad(config_.fused.icp_prior_sigma_deg);
   icp_prior_information_ << Eigen::Vector3d::Constant(1.0 / (prior_rad * prior_rad)),
-      Eigen::Vector3d::Constant(1.0 / (config_.fused_icp_prior_sigma_m * config_.fused_icp_prior_sigma_m));
+      Eigen::Vector3d::Constant(1.0 / (config_.fused.icp_prior_sigma_m * config_.fused.icp_prior_sigma_m));
   const auto capacity = static_cast<std::size_t>(config.orb_features) * 2;
   matches_.reserve(capacity);
   matcher_.reserve(capacity);
@@ -164,7 +164,7 @@ MotionEstimate Registrar::fused_estimate(const geometry::GeometricFeatures& targ
   const auto photometric_end = static_cast<std::size_t>(photometric_count);
   // A geometric keypoint is a voxel centroid: where the leaf's cell boundaries fall moves it by
   // up to a leaf between frames, far more than the depth noise of its points.
-  const double quantisation = config_.fused_geometric_leaf_sigma;
+  const double quantisation = config_.fused.geometric_leaf_sigma;
   const double target_leaf = target_geometric.voxel_leaf_m;
   const double current_leaf = current_geometric.voxel_leaf_m;
   const double quantisation_sq =
@@ -228,16 +228,16 @@ MotionEstimate Registrar::fused_estimate(const geometry::GeometricFeatures& targ
   last_photometric_inliers_ = photometric_inliers;
   last_photometric_rotation_sigma_deg_ =
       photometric_rotation_sigma_deg(photometric, static_cast<std::size_t>(photometric_count));
-  if (refine && photometric_needs_refinement(config_.fused_icp_above_rotation_sigma_deg)) {
+  if (refine && photometric_needs_refinement(config_.fused.icp_above_rotation_sigma_deg)) {
     stage_start = SteadyClock::now();
     const std::span<const Eigen::Vector3f> all_source(source_points_);
     const std::span<const Eigen::Vector3f> all_target(target_points_);
     const std::span<const double> all_sigma(correspondence_sigma_m_);
     const bool shaped = photometric_inliers >= config_.min_inliers ||
                         (geometric.ok && inlier_thickness_m(geometric.T_target_source, geometric_source, geometric_target,
-                                                            geometric_sigma) >= config_.fused_min_geometric_thickness_m);
+                                                            geometric_sigma) >= config_.fused.min_geometric_thickness_m);
     const bool registered = fused.ok && fused.inliers >= config_.min_inliers &&
-                            fused.noise_scale <= config_.fused_max_noise_scale && shaped;
+                            fused.noise_scale <= config_.fused.max_noise_scale && shaped;
     const Matrix6d feature_information =
         registered ? correspondence_information(fused.T_target_source, all_source, all_target, all_sigma) : Matrix6d::Zero();
     const geometry::IcpPrior prior = fused_icp_prior(at_rest, predicted, fused, registered, feature_information);
@@ -254,7 +254,7 @@ MotionEstimate Registrar::fused_estimate(const geometry::GeometricFeatures& targ
       // the edge's on the right. Counted as the surfaces and features alone, key-frame edges
       // within a turn were far too certain along the view, and a loop closure's correction went
       // into the turns.
-      fused.information = cloud_surface_information(current_geometric, config_.graph_icp_sigma_m);
+      fused.information = cloud_surface_information(current_geometric, config_.graph.icp_sigma_m);
       if (icp_prior_is_drivable_step()) {
         const Matrix6d to_left = lie::adjoint(fused.T_target_source);
         fused.information += to_left.transpose() * prior.information * to_left;
@@ -280,8 +280,8 @@ double Registrar::photometric_rotation_sigma_deg(const MotionEstimate& photometr
 }
 
 bool Registrar::photometric_needs_refinement(double above_rotation_sigma_deg) const {
-  if (config_.fused_icp_below_photometric_inliers > 0 &&
-      last_photometric_inliers_ < config_.fused_icp_below_photometric_inliers) {
+  if (config_.fused.icp_below_photometric_inliers > 0 &&
+      last_photometric_inliers_ < config_.fused.icp_below_photometric_inliers) {
     return true;
   }
   return above_rotation_sigma_deg > 0.0 && !(last_photometric_rotation_sigma_deg_ <= above_rotation_sigma_deg);

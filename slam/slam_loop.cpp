@@ -12,7 +12,7 @@ namespace {
 KeyframeStore make_keyframe_store(const SlamConfig& config) {
   const KeyframeLayout layout = keyframe_layout(config);
   return {config.keyframe_capacity, layout.photometric_features, layout.geometric_features, layout.cloud_points,
-          config.map_points_per_keyframe};
+          config.map.points_per_keyframe};
 }
 
 }  // namespace
@@ -34,8 +34,8 @@ SlamLoop::SlamLoop(const SlamConfig& config, const hal::Calibration& calibration
   }
   registrar_.share_with(&team_);
   tracker_ = make_tracker({config_, camera_, images_, registrar_, geometric_, arbiter_, team_, companion_, backend_});
-  if (keyframe_layout(config_).geometric_features > 0 && config_.loop_candidates_per_frame > 0 &&
-      config_.loop_candidates_per_frame < config_.loop_max_candidates) {
+  if (keyframe_layout(config_).geometric_features > 0 && config_.loop.candidates_per_frame > 0 &&
+      config_.loop.candidates_per_frame < config_.loop.max_candidates) {
     loop_closer_.keep_features_in(geometric_.make_features());  // a search may carry over into later frames
   }
 }
@@ -69,7 +69,7 @@ void SlamLoop::finish_frame(const hal::RgbdFrame& frame, const nav::MotionPrior*
     ++keyframes_;
     store_keyframe(frame, images_.has_depth(frame), result);
   }
-  loop_closer_.advance(config_.loop_candidates_per_frame, result);
+  loop_closer_.advance(config_.loop.candidates_per_frame, result);
   if (latest_keyframe_slot_ >= 0) {
     const StoredKeyframe& keyframe = keyframe_store_.slot(latest_keyframe_slot_);
     result.keyframe_node = keyframe.node;
@@ -86,8 +86,8 @@ void SlamLoop::store_keyframe(const hal::RgbdFrame& frame, bool have_depth, Fram
     // Full: retire a key-frame away from here (the loop search would not pick it soon) with the
     // fewest loop closures; its graph edges are composed through a neighbour, so the graph
     // stays connected.
-    slot = keyframe_store_.retirement_candidate(result.T_world_cam, 2.0 * config_.loop_search_radius_m,
-                                                config_.loop_min_keyframe_gap);
+    slot = keyframe_store_.retirement_candidate(result.T_world_cam, 2.0 * config_.loop.search_radius_m,
+                                                config_.loop.min_keyframe_gap);
     if (slot < 0) {
       if (have_depth) map_.add_keyframe(frame, images_, result.T_world_cam, nullptr);
       return;

@@ -246,7 +246,7 @@ void expect_steady_state_without_allocations(Mode mode, int loop_candidates_per_
                                              const std::vector<hal::RgbdFrame>& frames,
                                              const hal::Calibration& calibration) {
   SlamConfig config = config_for(mode);
-  config.loop_candidates_per_frame = loop_candidates_per_frame;
+  config.loop.candidates_per_frame = loop_candidates_per_frame;
   SlamLoop loop(config, calibration);
   loop.set_synchronous_backend(false);
   const CountedRun counted = run(loop, frames, kWarmUpFrames, kCountedFrames);
@@ -316,7 +316,7 @@ TEST_F(SlamLoopAllocations, PhotometricSteadyStateAllocatesNothing) {
 TEST_F(SlamLoopAllocations, FusedSteadyStateAllocatesNothing) {
   ASSERT_TRUE(error_->empty()) << *error_;
   // The default: all of a key-frame's candidates in its frame.
-  expect_steady_state_without_allocations(Mode::kFused, SlamConfig{}.loop_candidates_per_frame, *frames_,
+  expect_steady_state_without_allocations(Mode::kFused, SlamConfig{}.loop.candidates_per_frame, *frames_,
                                           recording_->calibration);
 }
 
@@ -327,7 +327,7 @@ TEST_F(SlamLoopAllocations, LoopCandidatesAreRegisteredOnePerFrameOrAllAtTheKeyf
   std::array<CountedRun, 2> counted;
   for (const int per_frame : {0, 1}) {
     SlamConfig config = config_for(Mode::kPhotometric);
-    config.loop_candidates_per_frame = per_frame;
+    config.loop.candidates_per_frame = per_frame;
     SlamLoop loop(config, recording_->calibration);
     loop.set_synchronous_backend(true);
     counted[static_cast<std::size_t>(per_frame)] = run(loop, *frames_, 0, kWarmUpFrames);
@@ -351,7 +351,7 @@ TEST_F(SlamLoopAllocations, LoopCandidatesAreRegisteredOnePerFrameOrAllAtTheKeyf
 TEST_F(SlamLoopAllocations, FusedWithoutSolvesAllocatesNothingOnAnyThread) {
   ASSERT_TRUE(error_->empty()) << *error_;
   SlamConfig config = config_for(Mode::kFused);
-  config.loop_max_candidates = 0;
+  config.loop.max_candidates = 0;
   SlamLoop loop(config, recording_->calibration);
   loop.set_synchronous_backend(false);
   const CountedRun counted = run(loop, *frames_, kWarmUpFrames, kLoopFrames);

@@ -55,7 +55,7 @@ class Backend {
     if (pending_) {
       (void)optimizer_.wait_until_idle(kFinishWait);
       if (take_solve(store, correction)) apply(correction);
-      if (optimizer_.submit(graph_, config_.graph_iterations)) pending_ = false;
+      if (optimizer_.submit(graph_, config_.graph.iterations)) pending_ = false;
     }
     (void)optimizer_.wait_until_idle(kFinishWait);
     if (take_solve(store, correction)) apply(correction);

@@ -42,9 +42,168 @@ enum class OrbImplementation : std::uint8_t {
   kOpenCv,       ///< OpenCV's cv::ORB, which allocates on every frame: the measured reference.
 };
 
-/// Parameters of the SLAM loop. Each is declared once, in visit_parameters(), with its range,
-/// unit and meaning; the configuration loader and the start-up printout both walk that list.
-/// `mode` is a named choice, set apart from the numeric parameters.
+/// Fused registration (docs/methods.md §6): the kinds' weights and when the geometric ICP refines.
+/// Keys `slam.fused_*`.
+struct FusedConfig {
+  // Fused mode (docs/methods.md §6): a geometric keypoint is a voxel centroid, which moves by up
+  // to a leaf between frames; with less noise its matches outweigh ORB's (docs/results.md §5).
+  double geometric_leaf_sigma = 2.0;
+  // Fewer photometric inliers call for the geometric ICP (coarse and fine; 0: never): it holds
+  // plain surfaces but hurts on a cluttered Kinect desk, hence a low bound (docs/results.md §5).
+  int icp_below_photometric_inliers = 30;
+  // The ICP also refines where the photometric inliers fix the rotation worse than this (1 sigma):
+  // corners on one distant poster fix tilt and height only together (docs/results.md §5). 0: never.
+  double icp_above_rotation_sigma_deg = 1.0;
+  // The ICP prior where the view leaves the motion free (docs/methods.md §6). 1: on a differential-
+  // drive base, its drivable step with the feature estimate; 0: that estimate or the previous pose.
+  int icp_base_kinematics = 1;
+  // The ICP prior's strength per frame on the step from its pose: 5 mm holds the travel along a
+  // plain corridor better than 1 or 3 cm (docs/results.md §1.3, §5).
+  double icp_prior_sigma_m = 0.005;
+  double icp_prior_sigma_deg = 1.0;
+  // A feature estimate is the ICP's prior only if its inliers fit within this multiple of their
+  // predicted noise: a dozen matches of noise fit far worse (docs/results.md §5).
+  double max_noise_scale = 2.0;
+  // Without min_inliers photometric inliers, the estimate's geometric inliers must also leave a
+  // plane by this much: on one plane every SHOT descriptor looks alike (docs/results.md §5).
+  double min_geometric_thickness_m = 0.1;
+
+  template <typename Visitor>
+  void visit_parameters(Visitor&& visit) {
+    visit("fused_geometric_leaf_sigma", geometric_leaf_sigma, 0.0, 10.0, "leaf",
+          "fused mode: position noise of a geometric keypoint added per frame, in voxel leaves");
+    visit("fused_icp_below_photometric_inliers", icp_below_photometric_inliers, 0, 100000, "",
+          "fused mode: fewer photometric inliers than this call for the geometric ICP refinement (0: never)");
+    visit("fused_icp_above_rotation_sigma_deg", icp_above_rotation_sigma_deg, 0.0, 180.0, "deg",
+          "fused mode: photometric inliers that fix the rotation worse than this also call for the ICP refinement (0: never)");
+    visit("fused_icp_base_kinematics", icp_base_kinematics, 0, 1, "",
+          "fused mode on a differential-drive robot: the ICP prior is the base's drivable step with the feature estimate");
+    visit("fused_icp_prior_sigma_m", icp_prior_sigma_m, 1e-4, 10.0, "m",
+          "fused mode: per-frame translation strength of the ICP refinement's prior where the view leaves the motion free");
+    visit("fused_icp_prior_sigma_deg", icp_prior_sigma_deg, 1e-3, 90.0, "deg",
+          "fused mode: per-frame rotation strength of the ICP refinement's prior");
+    visit("fused_max_noise_scale", max_noise_scale, 0.1, 1000.0, "",
+          "fused mode: a feature estimate whose inliers fit worse than this many times their noise is not the ICP's prior");
+    visit("fused_min_geometric_thickness_m", min_geometric_thickness_m, 0.0, 10.0, "m",
+          "fused mode: geometric inliers must leave a plane by this much for their estimate to be the ICP's prior");
+  }
+};
+
+/// The coloured point map. Keys `slam.map_*`.
+struct MapConfig {
+  double voxel_m = 0.02;
+  int max_points = 2'000'000;
+  int points_per_keyframe = 5000;
+
+  template <typename Visitor>
+  void visit_parameters(Visitor&& visit) {
+    visit("map_voxel_m", voxel_m, 0.001, 1.0, "m", "map voxel edge; points in one voxel are merged");
+    visit("map_max_points", max_points, 1000, 50'000'000, "", "capacity of the map");
+    visit("map_points_per_keyframe", points_per_keyframe, 100, 307200, "", "points sampled per key-frame");
+  }
+};
+
+/// Loop closure (docs/methods.md §10): the candidates, the adaptive threshold and the checks
+/// against false closures. Keys `slam.loop_*`.
+struct LoopConfig {
+  // Loop-closure candidates: key-frames but the newest loop_min_keyframe_gap, within the radius and
+  // rotation widened by the drift allowed since; the loop_max_candidates nearest are registered.
+  int min_keyframe_gap = 5;
+  double search_radius_m = 0.5;
+  double search_rotation_deg = 30.0;
+  double drift_per_m = 0.1;
+  double drift_deg_per_m = 3.0;
+  int max_candidates = 3;
+  // Candidates registered per frame from the key-frame's on (0: all in its frame): spreading them
+  // lowers the longest frames and raises the median (docs/results.md §2.2).
+  int candidates_per_frame = 0;
+  // Adaptive threshold ε on k_P + k_G (docs/methods.md §10): initial value until two closures exist
+  // (lean low: the thesis saw 68-207), and T_ε.
+  double initial_threshold = 60.0;
+  double threshold_deviations = 1.0;
+  // Against false closures: the registered pose may differ from the graph's by at most this plus
+  // the drift allowance, and the inliers must spread this far (no line or blob).
+  double max_correction_m = 0.1;
+  double max_correction_deg = 5.0;
+  double min_inlier_spread_m = 0.05;
+  // A closure corrects the whole chain since its key-frame, so the ICP refines it already where its
+  // photometric inliers fix the rotation worse than this (docs/results.md §5). 0: by inlier count.
+  double icp_above_rotation_sigma_deg = 0.5;
+  // A refined closure is taken only where the surfaces fix every direction this fraction as well as
+  // the feature estimate: a blank wall or the floor alone fixes too little (docs/results.md §5).
+  double icp_min_information_ratio = 0.1;
+
+  template <typename Visitor>
+  void visit_parameters(Visitor&& visit) {
+    visit("loop_min_keyframe_gap", min_keyframe_gap, 1, 10000, "",
+          "the most recent key-frames are not loop-closure candidates");
+    visit("loop_search_radius_m", search_radius_m, 0.0, 100.0, "m", "loop-closure candidates lie this close");
+    visit("loop_search_rotation_deg", search_rotation_deg, 0.0, 180.0, "deg",
+          "loop-closure candidates are turned at most this much from the new key-frame");
+    visit("loop_drift_per_m", drift_per_m, 0.0, 10.0, "",
+          "translation drift allowed per metre travelled (widens the search and the consistency check)");
+    visit("loop_drift_deg_per_m", drift_deg_per_m, 0.0, 180.0, "deg/m", "rotation drift allowed per metre travelled");
+    visit("loop_max_candidates", max_candidates, 0, 100, "", "nearest candidates registered per key-frame (0: no loop closure)");
+    visit("loop_candidates_per_frame", candidates_per_frame, 0, 100, "",
+          "loop-closure candidates registered per frame from the key-frame's own on (0: all in its frame)");
+    visit("loop_initial_threshold", initial_threshold, 0.0, 100000.0, "",
+          "inliers (photometric + geometric) that close a loop until two closures set the adaptive threshold");
+    visit("loop_threshold_deviations", threshold_deviations, 0.0, 10.0, "",
+          "T_epsilon: standard deviations below the mean inlier counts of past closures");
+    visit("loop_max_correction_m", max_correction_m, 0.0, 100.0, "m",
+          "a closure may move the key-frame this much from the graph's estimate (plus drift allowance)");
+    visit("loop_max_correction_deg", max_correction_deg, 0.0, 180.0, "deg",
+          "a closure may turn the key-frame this much from the graph's estimate (plus drift allowance)");
+    visit("loop_min_inlier_spread_m", min_inlier_spread_m, 0.0, 10.0, "m",
+          "a closure's inliers must spread at least this far across their second axis");
+    visit("loop_icp_above_rotation_sigma_deg", icp_above_rotation_sigma_deg, 0.0, 180.0, "deg",
+          "fused mode: a loop closure whose photometric inliers fix the rotation worse than this is refined by ICP (0: never for that)");
+    visit("loop_icp_min_information_ratio", icp_min_information_ratio, 0.0, 1.0e6, "",
+          "fused mode: an ICP-refined loop closure is dropped where the surfaces fix some direction less than this fraction of the feature estimate");
+  }
+};
+
+/// The pose graph (docs/methods.md §8, §11): edge weights and the optimiser. Keys `slam.graph_*`.
+struct GraphConfig {
+  // Error of a registration on one well-fitting match (graph::information_from_matches); a worse
+  // fit divides the information by its noise scale squared (Backend::registration_information).
+  double match_sigma_m = 0.02;
+  double match_sigma_deg = 1.0;
+  // ICP-refined key-frame edges add the surfaces' information at this error per fully constraining
+  // direction, so a loop closure bends the chain where the view left the motion free.
+  double icp_sigma_m = 0.005;
+  int iterations = 20;
+  // Wheel edges between key-frames: the wheel motion plus this floor per axis (0 m: none), kept
+  // below the wheels' own noise over a key-frame step (5 mm) not to bury it (docs/results.md §5).
+  double wheel_floor_m = 0.001;
+  double wheel_floor_deg = 0.05;
+  // Differential-drive base: key-frame edges hold height, roll and pitch, which vision lets drift
+  // and a closure would spread over the loop (docs/results.md §1.3, §5). 0: no such edges.
+  double planar_sigma_m = 0.005;
+  double planar_sigma_deg = 0.2;
+
+  template <typename Visitor>
+  void visit_parameters(Visitor&& visit) {
+    visit("graph_match_sigma_m", match_sigma_m, 1e-6, 10.0, "m", "translation error of a registration on one match");
+    visit("graph_match_sigma_deg", match_sigma_deg, 1e-6, 180.0, "deg", "rotation error of a registration on one match");
+    visit("graph_icp_sigma_m", icp_sigma_m, 1e-5, 10.0, "m",
+          "error of an ICP-refined registration along a direction its surfaces fully constrain (graph edge weight)");
+    visit("graph_wheel_floor_m", wheel_floor_m, 0.0, 10.0, "m",
+          "translation noise added to a wheel edge between key-frames (0: no wheel edges)");
+    visit("graph_wheel_floor_deg", wheel_floor_deg, 1e-6, 180.0, "deg", "rotation noise added to a wheel edge between key-frames");
+    visit("graph_planar_sigma_m", planar_sigma_m, 0.0, 10.0, "m",
+          "differential-drive base: height change between key-frames (0: no planar edges)");
+    visit("graph_planar_sigma_deg", planar_sigma_deg, 0.0, 90.0, "deg",
+          "differential-drive base: roll and pitch change between key-frames (0: no planar edges)");
+    visit("graph_iterations", iterations, 1, 1000, "", "Levenberg-Marquardt iterations per pose-graph optimisation");
+  }
+};
+
+/// Parameters of the SLAM loop: a tree of the parts' own structs (fused registration, map, loop
+/// closure, pose graph, wheel arbiter, geometric front-end) under the tracking and shared ones.
+/// Each is declared once, in its struct's visit_parameters(), with its range, unit and meaning;
+/// the configuration loader and the start-up printout both walk that list. `mode` is a named
+/// choice, set apart from the numeric parameters.
 struct SlamConfig {
   Mode mode = Mode::kBaseline;
   /// Not read from configuration files: OpenCV's ORB is kept for side-by-side measurements.
@@ -90,37 +249,12 @@ struct SlamConfig {
   double reference_max_noise_scale = 2.0;
   double keyframe_translation_m = 0.25;
   double keyframe_rotation_deg = 15.0;
-  double map_voxel_m = 0.02;
-  int map_max_points = 2'000'000;
-  int map_points_per_keyframe = 5000;
   // Dark scenes (docs/methods.md §2): 30 lies well between lit rooms' mean grey level and a dark
   // room's sensor noise; the IR image's low contrast needs a FAST threshold of its own.
   double ir_switch_brightness = 30.0;
   int ir_orb_fast_threshold = 8;
   /// The wheel/vision arbiter (SlamLoop::process with a MotionPrior).
   nav::WheelArbiterConfig wheels;
-  // Fused mode (docs/methods.md §6): a geometric keypoint is a voxel centroid, which moves by up
-  // to a leaf between frames; with less noise its matches outweigh ORB's (docs/results.md §5).
-  double fused_geometric_leaf_sigma = 2.0;
-  // Fewer photometric inliers call for the geometric ICP (coarse and fine; 0: never): it holds
-  // plain surfaces but hurts on a cluttered Kinect desk, hence a low bound (docs/results.md §5).
-  int fused_icp_below_photometric_inliers = 30;
-  // The ICP also refines where the photometric inliers fix the rotation worse than this (1 sigma):
-  // corners on one distant poster fix tilt and height only together (docs/results.md §5). 0: never.
-  double fused_icp_above_rotation_sigma_deg = 1.0;
-  // The ICP prior where the view leaves the motion free (docs/methods.md §6). 1: on a differential-
-  // drive base, its drivable step with the feature estimate; 0: that estimate or the previous pose.
-  int fused_icp_base_kinematics = 1;
-  // The ICP prior's strength per frame on the step from its pose: 5 mm holds the travel along a
-  // plain corridor better than 1 or 3 cm (docs/results.md §1.3, §5).
-  double fused_icp_prior_sigma_m = 0.005;
-  double fused_icp_prior_sigma_deg = 1.0;
-  // A feature estimate is the ICP's prior only if its inliers fit within this multiple of their
-  // predicted noise: a dozen matches of noise fit far worse (docs/results.md §5).
-  double fused_max_noise_scale = 2.0;
-  // Without min_inliers photometric inliers, the estimate's geometric inliers must also leave a
-  // plane by this much: on one plane every SHOT descriptor looks alike (docs/results.md §5).
-  double fused_min_geometric_thickness_m = 0.1;
   // An ICP-refined registration below min_inliers feature inliers needs this many point-to-plane
   // inliers: a lone wall at 1 m gives thousands (docs/results.md §5).
   int min_icp_inliers = 300;
@@ -134,48 +268,10 @@ struct SlamConfig {
   // Threads sharing the per-frame loops, the tracking thread included: the robot computer's two
   // cores. The estimates are the same for any count.
   int threads = 2;
-  // Loop-closure candidates: key-frames but the newest loop_min_keyframe_gap, within the radius and
-  // rotation widened by the drift allowed since; the loop_max_candidates nearest are registered.
-  int loop_min_keyframe_gap = 5;
-  double loop_search_radius_m = 0.5;
-  double loop_search_rotation_deg = 30.0;
-  double loop_drift_per_m = 0.1;
-  double loop_drift_deg_per_m = 3.0;
-  int loop_max_candidates = 3;
-  // Candidates registered per frame from the key-frame's on (0: all in its frame): spreading them
-  // lowers the longest frames and raises the median (docs/results.md §2.2).
-  int loop_candidates_per_frame = 0;
-  // Adaptive threshold ε on k_P + k_G (docs/methods.md §10): initial value until two closures exist
-  // (lean low: the thesis saw 68-207), and T_ε.
-  double loop_initial_threshold = 60.0;
-  double loop_threshold_deviations = 1.0;
-  // Against false closures: the registered pose may differ from the graph's by at most this plus
-  // the drift allowance, and the inliers must spread this far (no line or blob).
-  double loop_max_correction_m = 0.1;
-  double loop_max_correction_deg = 5.0;
-  double loop_min_inlier_spread_m = 0.05;
-  // A closure corrects the whole chain since its key-frame, so the ICP refines it already where its
-  // photometric inliers fix the rotation worse than this (docs/results.md §5). 0: by inlier count.
-  double loop_icp_above_rotation_sigma_deg = 0.5;
-  // A refined closure is taken only where the surfaces fix every direction this fraction as well as
-  // the feature estimate: a blank wall or the floor alone fixes too little (docs/results.md §5).
-  double loop_icp_min_information_ratio = 0.1;
-  // Error of a registration on one well-fitting match (graph::information_from_matches); a worse
-  // fit divides the information by its noise scale squared (Backend::registration_information).
-  double graph_match_sigma_m = 0.02;
-  double graph_match_sigma_deg = 1.0;
-  // ICP-refined key-frame edges add the surfaces' information at this error per fully constraining
-  // direction, so a loop closure bends the chain where the view left the motion free.
-  double graph_icp_sigma_m = 0.005;
-  int graph_iterations = 20;
-  // Wheel edges between key-frames: the wheel motion plus this floor per axis (0 m: none), kept
-  // below the wheels' own noise over a key-frame step (5 mm) not to bury it (docs/results.md §5).
-  double graph_wheel_floor_m = 0.001;
-  double graph_wheel_floor_deg = 0.05;
-  // Differential-drive base: key-frame edges hold height, roll and pitch, which vision lets drift
-  // and a closure would spread over the loop (docs/results.md §1.3, §5). 0: no such edges.
-  double graph_planar_sigma_m = 0.005;
-  double graph_planar_sigma_deg = 0.2;
+  FusedConfig fused;
+  MapConfig map;
+  LoopConfig loop;
+  GraphConfig graph;
   int seed = 1;
 
   /// The depth-only front-end of the geometric and fused modes (docs/methods.md §3–§5); its own
@@ -233,72 +329,20 @@ struct SlamConfig {
           "a worse-fitting registration against the tracking key-frame also tries the previous frame");
     visit("keyframe_translation_m", keyframe_translation_m, 0.01, 10.0, "m", "translation that starts a map key-frame");
     visit("keyframe_rotation_deg", keyframe_rotation_deg, 1.0, 180.0, "deg", "rotation that starts a map key-frame");
-    visit("map_voxel_m", map_voxel_m, 0.001, 1.0, "m", "map voxel edge; points in one voxel are merged");
-    visit("map_max_points", map_max_points, 1000, 50'000'000, "", "capacity of the map");
-    visit("map_points_per_keyframe", map_points_per_keyframe, 100, 307200, "", "points sampled per key-frame");
     visit("ir_switch_brightness", ir_switch_brightness, 0.0, 255.0, "level",
           "mean grey level of the colour image below which features come from the IR image (0: never)");
     visit("ir_orb_fast_threshold", ir_orb_fast_threshold, 1, 100, "", "FAST corner threshold on the IR image");
     wheels.visit_parameters(visit);
-    visit("fused_geometric_leaf_sigma", fused_geometric_leaf_sigma, 0.0, 10.0, "leaf",
-          "fused mode: position noise of a geometric keypoint added per frame, in voxel leaves");
-    visit("fused_icp_below_photometric_inliers", fused_icp_below_photometric_inliers, 0, 100000, "",
-          "fused mode: fewer photometric inliers than this call for the geometric ICP refinement (0: never)");
-    visit("fused_icp_above_rotation_sigma_deg", fused_icp_above_rotation_sigma_deg, 0.0, 180.0, "deg",
-          "fused mode: photometric inliers that fix the rotation worse than this also call for the ICP refinement (0: never)");
-    visit("fused_icp_base_kinematics", fused_icp_base_kinematics, 0, 1, "",
-          "fused mode on a differential-drive robot: the ICP prior is the base's drivable step with the feature estimate");
-    visit("fused_icp_prior_sigma_m", fused_icp_prior_sigma_m, 1e-4, 10.0, "m",
-          "fused mode: per-frame translation strength of the ICP refinement's prior where the view leaves the motion free");
-    visit("fused_icp_prior_sigma_deg", fused_icp_prior_sigma_deg, 1e-3, 90.0, "deg",
-          "fused mode: per-frame rotation strength of the ICP refinement's prior");
-    visit("fused_max_noise_scale", fused_max_noise_scale, 0.1, 1000.0, "",
-          "fused mode: a feature estimate whose inliers fit worse than this many times their noise is not the ICP's prior");
-    visit("fused_min_geometric_thickness_m", fused_min_geometric_thickness_m, 0.0, 10.0, "m",
-          "fused mode: geometric inliers must leave a plane by this much for their estimate to be the ICP's prior");
     visit("min_icp_inliers", min_icp_inliers, 3, 1000000, "",
           "an ICP-refined registration with fewer feature inliers than min_inliers needs this many point-to-plane inliers");
     visit("keyframe_capacity", keyframe_capacity, 2, 65536, "", "key-frames the back-end stores (about 1 MB each)");
     visit("keyframe_cloud_points", keyframe_cloud_points, 0, 1000000, "",
           "sampled points each key-frame keeps for ICP-refined loop closures (0: none)");
     visit("threads", threads, 1, 8, "", "threads sharing the per-frame loops, the tracking thread included");
-    visit("loop_min_keyframe_gap", loop_min_keyframe_gap, 1, 10000, "",
-          "the most recent key-frames are not loop-closure candidates");
-    visit("loop_search_radius_m", loop_search_radius_m, 0.0, 100.0, "m", "loop-closure candidates lie this close");
-    visit("loop_search_rotation_deg", loop_search_rotation_deg, 0.0, 180.0, "deg",
-          "loop-closure candidates are turned at most this much from the new key-frame");
-    visit("loop_drift_per_m", loop_drift_per_m, 0.0, 10.0, "",
-          "translation drift allowed per metre travelled (widens the search and the consistency check)");
-    visit("loop_drift_deg_per_m", loop_drift_deg_per_m, 0.0, 180.0, "deg/m", "rotation drift allowed per metre travelled");
-    visit("loop_max_candidates", loop_max_candidates, 0, 100, "", "nearest candidates registered per key-frame (0: no loop closure)");
-    visit("loop_candidates_per_frame", loop_candidates_per_frame, 0, 100, "",
-          "loop-closure candidates registered per frame from the key-frame's own on (0: all in its frame)");
-    visit("loop_initial_threshold", loop_initial_threshold, 0.0, 100000.0, "",
-          "inliers (photometric + geometric) that close a loop until two closures set the adaptive threshold");
-    visit("loop_threshold_deviations", loop_threshold_deviations, 0.0, 10.0, "",
-          "T_epsilon: standard deviations below the mean inlier counts of past closures");
-    visit("loop_max_correction_m", loop_max_correction_m, 0.0, 100.0, "m",
-          "a closure may move the key-frame this much from the graph's estimate (plus drift allowance)");
-    visit("loop_max_correction_deg", loop_max_correction_deg, 0.0, 180.0, "deg",
-          "a closure may turn the key-frame this much from the graph's estimate (plus drift allowance)");
-    visit("loop_min_inlier_spread_m", loop_min_inlier_spread_m, 0.0, 10.0, "m",
-          "a closure's inliers must spread at least this far across their second axis");
-    visit("loop_icp_above_rotation_sigma_deg", loop_icp_above_rotation_sigma_deg, 0.0, 180.0, "deg",
-          "fused mode: a loop closure whose photometric inliers fix the rotation worse than this is refined by ICP (0: never for that)");
-    visit("loop_icp_min_information_ratio", loop_icp_min_information_ratio, 0.0, 1.0e6, "",
-          "fused mode: an ICP-refined loop closure is dropped where the surfaces fix some direction less than this fraction of the feature estimate");
-    visit("graph_match_sigma_m", graph_match_sigma_m, 1e-6, 10.0, "m", "translation error of a registration on one match");
-    visit("graph_match_sigma_deg", graph_match_sigma_deg, 1e-6, 180.0, "deg", "rotation error of a registration on one match");
-    visit("graph_icp_sigma_m", graph_icp_sigma_m, 1e-5, 10.0, "m",
-          "error of an ICP-refined registration along a direction its surfaces fully constrain (graph edge weight)");
-    visit("graph_wheel_floor_m", graph_wheel_floor_m, 0.0, 10.0, "m",
-          "translation noise added to a wheel edge between key-frames (0: no wheel edges)");
-    visit("graph_wheel_floor_deg", graph_wheel_floor_deg, 1e-6, 180.0, "deg", "rotation noise added to a wheel edge between key-frames");
-    visit("graph_planar_sigma_m", graph_planar_sigma_m, 0.0, 10.0, "m",
-          "differential-drive base: height change between key-frames (0: no planar edges)");
-    visit("graph_planar_sigma_deg", graph_planar_sigma_deg, 0.0, 90.0, "deg",
-          "differential-drive base: roll and pitch change between key-frames (0: no planar edges)");
-    visit("graph_iterations", graph_iterations, 1, 1000, "", "Levenberg-Marquardt iterations per pose-graph optimisation");
+    fused.visit_parameters(visit);
+    map.visit_parameters(visit);
+    loop.visit_parameters(visit);
+    graph.visit_parameters(visit);
     visit("seed", seed, 0, 2147483647, "", "random seed: equal seeds give equal results");
   }
 };

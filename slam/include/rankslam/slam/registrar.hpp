@@ -82,7 +82,7 @@ class Registrar {
   /// Whether fused mode's ICP prior is the base's drivable step combined with the feature
   /// estimate (a differential-drive base with fused_icp_base_kinematics), not the estimate alone.
   [[nodiscard]] bool icp_prior_is_drivable_step() const {
-    return config_.fused_icp_base_kinematics != 0 && differential_drive_;
+    return config_.fused.icp_base_kinematics != 0 && differential_drive_;
   }
   /// The ICP prior of fused mode where the view leaves the motion free (see
   /// SlamConfig::fused_icp_base_kinematics): `registered` tells whether `feature` is a registration.
