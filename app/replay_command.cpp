@@ -12,6 +12,7 @@
 #include "rankslam/hal/atomic_file.hpp"
 #include "rankslam/replay/replay_camera.hpp"
 #include "rankslam/replay/replay_can_bus.hpp"
+#include "rankslam/sim/simulator.hpp"
 #include "rankslam/slam/slam_loop.hpp"
 
 #include <algorithm>
@@ -41,13 +42,29 @@ int run_replay(const ReplayArgs& args) {
   fs::path recording_dir = args.recording;
   if (recording_dir.empty()) {
     recording_dir = args.out / "recording";
-    if (!args.quiet) std::cout << "no recording given: simulating the '" << kDefaultScene << "' scene into " << recording_dir << "\n";
     std::error_code ec;
-    fs::remove_all(recording_dir, ec);
-    SimulateArgs simulate;
-    simulate.scene = kDefaultScene;
-    simulate.out = recording_dir;
-    if (const int code = run_simulate(simulate); code != kExitOk) return code;
+    const bool occupied = fs::exists(fs::symlink_status(recording_dir, ec)) &&
+                          !(fs::is_directory(recording_dir, ec) && fs::is_empty(recording_dir, ec));
+    if (occupied) {
+      // Nothing already there is deleted: the default scene simulated by an earlier run is replayed again.
+      if (!sim::is_simulated_recording(recording_dir, kDefaultScene)) {
+        std::cerr << "error: no recording given and " << recording_dir.string()
+                  << " holds something other than the simulated default scene; give a recording or another --out\n";
+        return kExitOutput;
+      }
+      if (!args.quiet) {
+        std::cout << "no recording given: replaying the '" << kDefaultScene << "' scene simulated in " << recording_dir
+                  << "\n";
+      }
+    } else {
+      if (!args.quiet) {
+        std::cout << "no recording given: simulating the '" << kDefaultScene << "' scene into " << recording_dir << "\n";
+      }
+      SimulateArgs simulate;
+      simulate.scene = kDefaultScene;
+      simulate.out = recording_dir;
+      if (const int code = run_simulate(simulate); code != kExitOk) return code;
+    }
   }
 
   replay::Recording recording;

@@ -23,6 +23,7 @@
 #include <condition_variable>
 #include <cstdio>
 #include <cstring>
+#include <fstream>
 #include <memory>
 #include <mutex>
 #include <numbers>
@@ -127,9 +128,14 @@ std::string camera_yaml(const char* name, const hal::CameraCalibration& camera, 
   return text;
 }
 
+// The first line of a simulated recording's calibration.yaml, which names its scene.
+std::string calibration_header(const std::string& scene) {
+  return "# rankslam recording calibration: simulated scene '" + scene + "'";
+}
+
 std::string calibration_yaml(const SceneModel& scene) {
   const hal::Calibration& c = scene.calibration;
-  std::string text = "# rankslam recording calibration: simulated scene '" + scene.name + "'\n";
+  std::string text = calibration_header(scene.name) + "\n";
   text += "depth_scale: " + number(c.depth_scale) + "  # raw depth units per metre\n";
   text += "depth_noise_per_m: " + number(c.depth_noise_per_m) + "  # a in the axial depth noise a*z^2\n";
   text += "cameras:\n";
@@ -593,6 +599,12 @@ std::string simulate_recording(const SimulationOptions& options, SimulationSumma
     summary->frames_per_second = seconds > 0.0 ? frames / seconds : 0.0;
   }
   return {};
+}
+
+bool is_simulated_recording(const fs::path& dir, const std::string& scene) {
+  std::ifstream file(dir / "calibration.yaml");
+  std::string first_line;
+  return std::getline(file, first_line) && first_line == calibration_header(scene);
 }
 
 }  // namespace rankslam::sim

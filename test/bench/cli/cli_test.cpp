@@ -326,6 +326,20 @@ TEST(Cli, ReplayWithoutRecordingSimulatesTheDefaultScene) {
   EXPECT_NE(result.output.find("ATE RMSE"), std::string::npos) << result.output;
   EXPECT_TRUE(fs::exists(out / "recording/groundtruth.txt"));
   EXPECT_TRUE(fs::exists(out / "report.json"));
+  // Again into the same folder: the scene simulated there is replayed, not simulated anew.
+  const auto again = run("replay --out " + out.string() + " --max-frames 60");
+  ASSERT_EQ(again.exit_code, 0) << again.output;
+  EXPECT_NE(again.output.find("replaying the 'office' scene simulated in"), std::string::npos) << again.output;
+}
+
+TEST(Cli, ReplayWithoutRecordingDeletesNothingAlreadyInItsOutput) {
+  const fs::path out = fresh_dir("rankslam_cli_default_keep");
+  fs::create_directories(out / "recording");
+  std::ofstream(out / "recording" / "notes.txt") << "the user's own file\n";
+  const auto result = run("replay --out " + out.string() + " --max-frames 5");
+  EXPECT_EQ(result.exit_code, 4) << result.output;
+  EXPECT_NE(result.output.find((out / "recording").string()), std::string::npos) << result.output;
+  EXPECT_TRUE(fs::exists(out / "recording" / "notes.txt"));
 }
 
 TEST(Cli, ReplayErrorsNameTheProblem) {

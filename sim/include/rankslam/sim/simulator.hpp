@@ -78,4 +78,8 @@ struct SimulationSummary {
 /// may be null.
 [[nodiscard]] std::string simulate_recording(const SimulationOptions& options, SimulationSummary* summary);
 
+/// Whether `dir` holds a recording simulate_recording() wrote of `scene` (its calibration.yaml
+/// says so).
+[[nodiscard]] bool is_simulated_recording(const std::filesystem::path& dir, const std::string& scene);
+
 }  // namespace rankslam::sim
