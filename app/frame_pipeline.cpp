@@ -1,5 +1,7 @@
 #include "frame_pipeline.hpp"
 
+#include "rankslam/core/stopwatch.hpp"
+
 namespace rankslam::app {
 
 bool ReplayedWheels::prior_for(std::int64_t stamp_ns, nav::MotionPrior& prior) {
@@ -44,9 +46,9 @@ std::int64_t FramePipeline::wheel_stamp_ns(const hal::RgbdFrame& frame) const {
 slam::FrameResult FramePipeline::process(const hal::RgbdFrame& frame) {
   const nav::MotionPrior* prior = nullptr;
   if (wheels_ != nullptr && wheels_->prior_for(wheel_stamp_ns(frame), prior_)) prior = &prior_;
-  const auto start = std::chrono::steady_clock::now();
+  const auto start = SteadyClock::now();
   slam::FrameResult result = loop_.process(frame, prior);
-  const auto end = std::chrono::steady_clock::now();
+  const double frame_ms = elapsed_ms(start);
   status_counts_.add(result);
   if (result.status == slam::FrameStatus::kFailed || result.status == slam::FrameStatus::kWheels) ++failed_frames_;
   const bool kept = trajectory_.size() < options_.max_frames;
@@ -56,7 +58,7 @@ slam::FrameResult FramePipeline::process(const hal::RgbdFrame& frame) {
     ++trajectory_overflow_;
   }
   if (options_.frame_log && kept) {
-    frame_ms_.push_back(std::chrono::duration<double, std::milli>(end - start).count());
+    frame_ms_.push_back(frame_ms);
     for (std::size_t i = 0; i < slam::StageTimes::kCount; ++i) stage_ms_[i].push_back(result.times.ms[i]);
     frame_records_.push_back(eval::frame_record(frame.stamp_s, result));
     keyframe_links_.push_back({result.keyframe_node, result.keyframe_generation, result.T_keyframe_cam});

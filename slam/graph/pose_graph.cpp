@@ -1,4 +1,5 @@
 #include "rankslam/graph/pose_graph.hpp"
+#include "rankslam/core/stopwatch.hpp"
 
 #include <algorithm>
 #include <chrono>
@@ -345,13 +346,11 @@ double PoseGraph::cost() const {
 }
 
 OptimizeSummary PoseGraph::optimize(int max_iterations, const std::atomic<bool>* cancel) {
-  const auto start = std::chrono::steady_clock::now();
+  const auto start = SteadyClock::now();
   OptimizeSummary result;
   const auto finish = [&](std::string_view message) {
     result.message = message;
-    result.solve_ms =
-        std::chrono::duration<double, std::milli>(std::chrono::steady_clock::now() - start)
-            .count();
+    result.solve_ms = elapsed_ms(start);
     return result;
   };
   if (!configured()) return finish("not configured");
