@@ -3,6 +3,7 @@
 #include "exit_codes.hpp"
 #include "frame_pipeline.hpp"
 #include "progress.hpp"
+#include "stop_signals.hpp"
 #include "rankslam/nav/wheel_prior.hpp"
 
 #include "rankslam/eval/metrics.hpp"
@@ -16,21 +17,12 @@
 #include "rankslam/slam/slam_loop.hpp"
 
 #include <algorithm>
-#include <atomic>
-#include <csignal>
 #include <cstdio>
 #include <iostream>
 #include <optional>
 #include <vector>
 
 namespace rankslam::app {
-namespace {
-
-std::atomic<bool> g_stop_requested{false};
-
-extern "C" void request_stop(int /*signal*/) { g_stop_requested.store(true); }
-
-}  // namespace
 
 int run_replay(const ReplayArgs& args) {
   namespace fs = std::filesystem;
@@ -131,14 +123,13 @@ int run_replay(const ReplayArgs& args) {
   FramePipeline pipeline(config, recording.calibration, replayed_wheels ? &*replayed_wheels : nullptr, pipeline_options);
   slam::SlamLoop& loop = pipeline.loop();
 
-  g_stop_requested = false;
-  std::signal(SIGINT, request_stop);
-  std::signal(SIGTERM, request_stop);
+  // Also in the write phase and after it: a signal then is deferred, not fatal.
+  defer_stop_signals(true);
   ProgressLine progress(camera.frame_count());
   hal::RgbdFrame frame;
   bool interrupted = false;
   for (;;) {
-    if (g_stop_requested) {
+    if (stop_requested()) {
       interrupted = true;
       break;
     }
@@ -158,8 +149,6 @@ int run_replay(const ReplayArgs& args) {
   const replay::ReplayCounters counters = camera.counters();
   for (const auto& warning : camera.take_warnings()) std::cerr << "warning: " << warning << "\n";
   camera.close();
-  std::signal(SIGINT, SIG_DFL);
-  std::signal(SIGTERM, SIG_DFL);
 
   // Outputs: each written atomically, so an interrupted or failed run never leaves half a file.
   int exit_code = interrupted ? kExitInterrupted : kExitOk;
@@ -272,6 +261,7 @@ int run_replay(const ReplayArgs& args) {
   json.raw_object("config", slam_config_json(config));
   json.end_object();
   report_error(hal::write_file_atomically(args.out / "report.json", std::string_view(json.str())));
+  if (exit_code == kExitOk && stop_requested()) exit_code = kExitInterrupted;
 
   const eval::Percentiles timing = eval::percentiles(pipeline.frame_ms());
   std::printf("frames %zu  failed %d  skipped %u  median %.1f ms/frame\n", estimate.size(), failed_frames,

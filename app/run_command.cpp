@@ -5,6 +5,7 @@
 #include "exit_codes.hpp"
 #include "frame_pipeline.hpp"
 #include "robot_config.hpp"
+#include "stop_signals.hpp"
 #include "wheel_player.hpp"
 
 #include "rankslam/eval/run_report.hpp"
@@ -18,7 +19,6 @@
 
 #include <atomic>
 #include <chrono>
-#include <csignal>
 #include <cstdio>
 #include <iostream>
 #include <memory>
@@ -26,36 +26,6 @@
 #include <thread>
 
 namespace rankslam::app {
-namespace {
-
-std::atomic<bool> g_stop{false};
-
-extern "C" void request_run_stop(int /*signal*/) { g_stop.store(true); }
-
-/// Installs SIGINT/SIGTERM handlers for its lifetime.
-class StopSignals {
- public:
-  StopSignals() {
-    g_stop = false;
-    struct sigaction action {};
-    action.sa_handler = request_run_stop;
-    sigemptyset(&action.sa_mask);
-    sigaction(SIGINT, &action, &old_int_);
-    sigaction(SIGTERM, &action, &old_term_);
-  }
-  ~StopSignals() {
-    sigaction(SIGINT, &old_int_, nullptr);
-    sigaction(SIGTERM, &old_term_, nullptr);
-  }
-  StopSignals(const StopSignals&) = delete;
-  StopSignals& operator=(const StopSignals&) = delete;
-
- private:
-  struct sigaction old_int_ {};
-  struct sigaction old_term_ {};
-};
-
-}  // namespace
 
 int run_live(const RunArgs& args) {
   namespace fs = std::filesystem;
@@ -135,7 +105,9 @@ int run_live(const RunArgs& args) {
   const Eigen::Isometry3d T_base_cam = calibration.rgb.T_base_cam;
   const Eigen::Isometry3d T_cam_base = T_base_cam.inverse();
 
-  const StopSignals signals;
+  // Also in the write phase and after it. Without SA_RESTART: a blocking wait in the loop returns
+  // at the signal instead of at its timeout.
+  defer_stop_signals(false);
   nav::PoseMailbox mailbox;
   std::atomic<bool> stop_output{false};
   // Wheel odometry from the bus as the motion prior: a live camera's stamps and the bus's are
@@ -207,7 +179,7 @@ int run_live(const RunArgs& args) {
   bool interrupted = false;
   std::optional<std::chrono::steady_clock::time_point> end_time;
   for (;;) {
-    if (g_stop.load()) {
+    if (stop_requested()) {
       interrupted = true;
       break;
     }
@@ -310,6 +282,7 @@ int run_live(const RunArgs& args) {
   json.boolean("interrupted", interrupted);
   json.end_object();
   report_error(hal::write_file_atomically(out / "report.json", std::string_view(json.str())));
+  if (exit_code == kExitOk && stop_requested()) exit_code = kExitInterrupted;
 
   std::printf("frames %zu  failed %d  pose cycles %llu (lost %llu)  heartbeats %llu  wheel frames in %llu%s\n",
               pipeline.trajectory().size(), pipeline.failed_frames(), static_cast<unsigned long long>(pose_counters.pose_cycles),
