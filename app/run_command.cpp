@@ -10,7 +10,7 @@
 
 #include "rankslam/eval/run_report.hpp"
 #include "rankslam/eval/trajectory.hpp"
-#include "rankslam/hal/atomic_file.hpp"
+#include "rankslam/hal/file_set.hpp"
 #include "rankslam/nav/pose_output.hpp"
 #include "rankslam/openni2/openni2_camera.hpp"
 #include "rankslam/replay/replay_camera.hpp"
@@ -232,7 +232,8 @@ int run_live(const RunArgs& args) {
   const replay::ReplayCounters replay_counters = replay_camera != nullptr ? replay_camera->counters() : replay::ReplayCounters{};
   camera.close();
 
-  // Outputs, each written atomically: an interrupted run never leaves half a file.
+  // Outputs: one set published at the end, so OUT holds this run's files or the previous run's.
+  hal::FileSet outputs(out);
   int exit_code = interrupted ? kExitInterrupted : kExitOk;
   const auto report_error = [&](const std::string& error) {
     if (error.empty()) return;
@@ -241,8 +242,10 @@ int run_live(const RunArgs& args) {
   };
   // The trajectory is what the pose output sent; the map takes the last optimised key-frame poses.
   pipeline.finish();
-  report_error(eval::write_tum_trajectory(out / "trajectory.txt", pipeline.trajectory()));
-  report_error(hal::write_file_atomically(out / "map.ply", std::string_view(loop.map().to_ply())));
+  report_error(outputs.add_written("trajectory.txt", [&](const fs::path& path) {
+    return eval::write_tum_trajectory(path, pipeline.trajectory());
+  }));
+  report_error(outputs.add("map.ply", std::string_view(loop.map().to_ply())));
 
   eval::JsonWriter json;
   json.begin_object();
@@ -281,7 +284,8 @@ int run_live(const RunArgs& args) {
   json.integer("bus_faults", static_cast<long long>(bus_statistics.faults));
   json.boolean("interrupted", interrupted);
   json.end_object();
-  report_error(hal::write_file_atomically(out / "report.json", std::string_view(json.str())));
+  report_error(outputs.add("report.json", std::string_view(json.str())));
+  report_error(outputs.publish());
   if (exit_code == kExitOk && stop_requested()) exit_code = kExitInterrupted;
 
   std::printf("frames %zu  failed %d  pose cycles %llu (lost %llu)  heartbeats %llu  wheel frames in %llu%s\n",
