@@ -3,6 +3,8 @@
 #include "commands.hpp"
 #include "exit_codes.hpp"
 
+#include "rankslam/hal/file_set.hpp"
+
 #include <yaml-cpp/yaml.h>
 
 #include <iostream>
@@ -146,10 +148,8 @@ int load_pipeline_config(const std::filesystem::path& path, const std::string& m
 }
 
 int make_output_directory(const std::filesystem::path& dir) {
-  std::error_code ec;
-  std::filesystem::create_directories(dir, ec);
-  if (!std::filesystem::is_directory(dir)) {
-    std::cerr << "error: cannot create output directory " << dir << ": " << ec.message() << "\n";
+  if (auto error = hal::prepare_output_directory(dir); !error.empty()) {
+    std::cerr << "error: " << error << "\n";
     return kExitOutput;
   }
   return kExitOk;

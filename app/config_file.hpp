@@ -31,7 +31,8 @@ namespace rankslam::app {
 [[nodiscard]] int load_pipeline_config(const std::filesystem::path& path, const std::string& mode_name,
                                        slam::SlamConfig& slam_config, nav::WheelOdometryConfig& wheel_config);
 
-/// Creates the output directory `dir`; kExitOk, or kExitOutput after printing why not.
+/// Creates the output directory `dir`, removes what killed runs left there and test-writes a file,
+/// so an unwritable `dir` stops the run before it starts; kExitOk, or kExitOutput after printing why not.
 [[nodiscard]] int make_output_directory(const std::filesystem::path& dir);
 
 }  // namespace rankslam::app

@@ -3,34 +3,26 @@
 #include "exit_codes.hpp"
 #include "frame_pipeline.hpp"
 #include "progress.hpp"
+#include "stop_signals.hpp"
 #include "rankslam/nav/wheel_prior.hpp"
 
 #include "rankslam/eval/metrics.hpp"
 #include "rankslam/eval/plot.hpp"
 #include "rankslam/eval/run_report.hpp"
 #include "rankslam/eval/trajectory.hpp"
-#include "rankslam/hal/atomic_file.hpp"
+#include "rankslam/hal/file_set.hpp"
 #include "rankslam/replay/replay_camera.hpp"
 #include "rankslam/replay/replay_can_bus.hpp"
 #include "rankslam/sim/simulator.hpp"
 #include "rankslam/slam/slam_loop.hpp"
 
 #include <algorithm>
-#include <atomic>
-#include <csignal>
 #include <cstdio>
 #include <iostream>
 #include <optional>
 #include <vector>
 
 namespace rankslam::app {
-namespace {
-
-std::atomic<bool> g_stop_requested{false};
-
-extern "C" void request_stop(int /*signal*/) { g_stop_requested.store(true); }
-
-}  // namespace
 
 int run_replay(const ReplayArgs& args) {
   namespace fs = std::filesystem;
@@ -131,14 +123,13 @@ int run_replay(const ReplayArgs& args) {
   FramePipeline pipeline(config, recording.calibration, replayed_wheels ? &*replayed_wheels : nullptr, pipeline_options);
   slam::SlamLoop& loop = pipeline.loop();
 
-  g_stop_requested = false;
-  std::signal(SIGINT, request_stop);
-  std::signal(SIGTERM, request_stop);
+  // Also in the write phase and after it: a signal then is deferred, not fatal.
+  defer_stop_signals(true);
   ProgressLine progress(camera.frame_count());
   hal::RgbdFrame frame;
   bool interrupted = false;
   for (;;) {
-    if (g_stop_requested) {
+    if (stop_requested()) {
       interrupted = true;
       break;
     }
@@ -158,19 +149,18 @@ int run_replay(const ReplayArgs& args) {
   const replay::ReplayCounters counters = camera.counters();
   for (const auto& warning : camera.take_warnings()) std::cerr << "warning: " << warning << "\n";
   camera.close();
-  std::signal(SIGINT, SIG_DFL);
-  std::signal(SIGTERM, SIG_DFL);
 
-  // Outputs: each written atomically, so an interrupted or failed run never leaves half a file.
+  // Outputs: one set published at the end, so OUT holds this run's files or the previous run's.
+  hal::FileSet outputs(args.out);
   int exit_code = interrupted ? kExitInterrupted : kExitOk;
   const auto report_error = [&](const std::string& error) {
     if (error.empty()) return;
     std::cerr << "error: " << error << "\n";
     exit_code = kExitOutput;
   };
-  report_error(eval::write_tum_trajectory(args.out / "trajectory.txt", estimate));
-  report_error(hal::write_file_atomically(args.out / "map.ply", std::string_view(loop.map().to_ply())));
-  report_error(hal::write_file_atomically(args.out / "frames.csv", std::string_view(eval::frames_csv(pipeline.frame_records()))));
+  report_error(outputs.add_written("trajectory.txt", [&](const fs::path& path) { return eval::write_tum_trajectory(path, estimate); }));
+  report_error(outputs.add("map.ply", std::string_view(loop.map().to_ply())));
+  report_error(outputs.add("frames.csv", std::string_view(eval::frames_csv(pipeline.frame_records()))));
 
   std::optional<eval::EvalResult> accuracy;
   std::optional<eval::Trajectory> ground_truth;
@@ -202,8 +192,7 @@ int run_replay(const ReplayArgs& args) {
       std::cerr << "warning: " << errors.error() << "; loop closures not checked against the ground truth\n";
     }
   }
-  report_error(
-      hal::write_file_atomically(args.out / "loop_closures.csv", std::string_view(eval::loop_closures_csv(closures, closure_errors))));
+  report_error(outputs.add("loop_closures.csv", std::string_view(eval::loop_closures_csv(closures, closure_errors))));
   int checked_closures = 0;
   int false_closures = 0;
   double worst_closure_m = 0.0;
@@ -220,7 +209,7 @@ int run_replay(const ReplayArgs& args) {
     plot_options.title = recording.root.filename().string() + "  (" + std::string(slam::to_string(config.mode)) + ")";
     if (accuracy) plot_options.ate_rmse_m = accuracy->ate.translation_m.rmse;
     const cv::Mat plot = eval::render_top_view(estimate, ground_truth ? &*ground_truth : nullptr, plot_options);
-    report_error(eval::write_png(args.out / "trajectory.png", plot));
+    report_error(outputs.add_written("trajectory.png", [&](const fs::path& path) { return eval::write_png(path, plot); }));
   }
 
   eval::JsonWriter json;
@@ -271,7 +260,9 @@ int run_replay(const ReplayArgs& args) {
   json.string("calibration", recording.calibration.source);
   json.raw_object("config", slam_config_json(config));
   json.end_object();
-  report_error(hal::write_file_atomically(args.out / "report.json", std::string_view(json.str())));
+  report_error(outputs.add("report.json", std::string_view(json.str())));
+  report_error(outputs.publish());
+  if (exit_code == kExitOk && stop_requested()) exit_code = kExitInterrupted;
 
   const eval::Percentiles timing = eval::percentiles(pipeline.frame_ms());
   std::printf("frames %zu  failed %d  skipped %u  median %.1f ms/frame\n", estimate.size(), failed_frames,

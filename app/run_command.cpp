@@ -5,11 +5,12 @@
 #include "exit_codes.hpp"
 #include "frame_pipeline.hpp"
 #include "robot_config.hpp"
+#include "stop_signals.hpp"
 #include "wheel_player.hpp"
 
 #include "rankslam/eval/run_report.hpp"
 #include "rankslam/eval/trajectory.hpp"
-#include "rankslam/hal/atomic_file.hpp"
+#include "rankslam/hal/file_set.hpp"
 #include "rankslam/nav/pose_output.hpp"
 #include "rankslam/openni2/openni2_camera.hpp"
 #include "rankslam/replay/replay_camera.hpp"
@@ -18,7 +19,6 @@
 
 #include <atomic>
 #include <chrono>
-#include <csignal>
 #include <cstdio>
 #include <iostream>
 #include <memory>
@@ -26,36 +26,6 @@
 #include <thread>
 
 namespace rankslam::app {
-namespace {
-
-std::atomic<bool> g_stop{false};
-
-extern "C" void request_run_stop(int /*signal*/) { g_stop.store(true); }
-
-/// Installs SIGINT/SIGTERM handlers for its lifetime.
-class StopSignals {
- public:
-  StopSignals() {
-    g_stop = false;
-    struct sigaction action {};
-    action.sa_handler = request_run_stop;
-    sigemptyset(&action.sa_mask);
-    sigaction(SIGINT, &action, &old_int_);
-    sigaction(SIGTERM, &action, &old_term_);
-  }
-  ~StopSignals() {
-    sigaction(SIGINT, &old_int_, nullptr);
-    sigaction(SIGTERM, &old_term_, nullptr);
-  }
-  StopSignals(const StopSignals&) = delete;
-  StopSignals& operator=(const StopSignals&) = delete;
-
- private:
-  struct sigaction old_int_ {};
-  struct sigaction old_term_ {};
-};
-
-}  // namespace
 
 int run_live(const RunArgs& args) {
   namespace fs = std::filesystem;
@@ -135,7 +105,9 @@ int run_live(const RunArgs& args) {
   const Eigen::Isometry3d T_base_cam = calibration.rgb.T_base_cam;
   const Eigen::Isometry3d T_cam_base = T_base_cam.inverse();
 
-  const StopSignals signals;
+  // Also in the write phase and after it. Without SA_RESTART: a blocking wait in the loop returns
+  // at the signal instead of at its timeout.
+  defer_stop_signals(false);
   nav::PoseMailbox mailbox;
   std::atomic<bool> stop_output{false};
   // Wheel odometry from the bus as the motion prior: a live camera's stamps and the bus's are
@@ -207,7 +179,7 @@ int run_live(const RunArgs& args) {
   bool interrupted = false;
   std::optional<std::chrono::steady_clock::time_point> end_time;
   for (;;) {
-    if (g_stop.load()) {
+    if (stop_requested()) {
       interrupted = true;
       break;
     }
@@ -260,7 +232,8 @@ int run_live(const RunArgs& args) {
   const replay::ReplayCounters replay_counters = replay_camera != nullptr ? replay_camera->counters() : replay::ReplayCounters{};
   camera.close();
 
-  // Outputs, each written atomically: an interrupted run never leaves half a file.
+  // Outputs: one set published at the end, so OUT holds this run's files or the previous run's.
+  hal::FileSet outputs(out);
   int exit_code = interrupted ? kExitInterrupted : kExitOk;
   const auto report_error = [&](const std::string& error) {
     if (error.empty()) return;
@@ -269,8 +242,10 @@ int run_live(const RunArgs& args) {
   };
   // The trajectory is what the pose output sent; the map takes the last optimised key-frame poses.
   pipeline.finish();
-  report_error(eval::write_tum_trajectory(out / "trajectory.txt", pipeline.trajectory()));
-  report_error(hal::write_file_atomically(out / "map.ply", std::string_view(loop.map().to_ply())));
+  report_error(outputs.add_written("trajectory.txt", [&](const fs::path& path) {
+    return eval::write_tum_trajectory(path, pipeline.trajectory());
+  }));
+  report_error(outputs.add("map.ply", std::string_view(loop.map().to_ply())));
 
   eval::JsonWriter json;
   json.begin_object();
@@ -309,7 +284,9 @@ int run_live(const RunArgs& args) {
   json.integer("bus_faults", static_cast<long long>(bus_statistics.faults));
   json.boolean("interrupted", interrupted);
   json.end_object();
-  report_error(hal::write_file_atomically(out / "report.json", std::string_view(json.str())));
+  report_error(outputs.add("report.json", std::string_view(json.str())));
+  report_error(outputs.publish());
+  if (exit_code == kExitOk && stop_requested()) exit_code = kExitInterrupted;
 
   std::printf("frames %zu  failed %d  pose cycles %llu (lost %llu)  heartbeats %llu  wheel frames in %llu%s\n",
               pipeline.trajectory().size(), pipeline.failed_frames(), static_cast<unsigned long long>(pose_counters.pose_cycles),
