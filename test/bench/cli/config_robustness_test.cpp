@@ -81,12 +81,60 @@ void expect_input_error(const CommandResult& result, const std::string& file, co
   EXPECT_EQ(result.output.find("internal error"), std::string::npos) << result.output;
 }
 
+TEST(CliConfig, NonFiniteConfigValuesAreRejectedByFileAndKey) {
+  const fs::path dir = test_dir();
+  const fs::path base = simulate_base(dir);
+  for (const auto& [key, value] : {std::pair<std::string, std::string>{"slam.max_depth_m", ".nan"},
+                                   {"slam.map_voxel_m", ".nan"},
+                                   {"slam.keyframe_translation_m", ".inf"},
+                                   {"geometry.max_depth_m", "-.inf"},
+                                   {"wheel_odometry.wheel_variance_per_m", ".nan"}}) {
+    const auto dot = key.find('.');
+    const fs::path config = dir / "nan.yaml";
+    std::ofstream(config, std::ios::trunc) << key.substr(0, dot) << ":\n  " << key.substr(dot + 1) << ": " << value
+                                           << "\n";
+    SCOPED_TRACE(key);
+    expect_input_error(replay(base, dir / "out", "--config " + config.string()), "nan.yaml", key);
+  }
+}
+
+TEST(CliConfig, UnknownSectionsDuplicateAndComplexKeysAreRejected) {
+  const fs::path dir = test_dir();
+  const fs::path base = simulate_base(dir);
+  const auto check = [&](const std::string& text, const std::string& key) {
+    const fs::path config = dir / "config.yaml";
+    std::ofstream(config, std::ios::trunc) << text;
+    SCOPED_TRACE(text);
+    expect_input_error(replay(base, dir / "out", "--config " + config.string()), "config.yaml", key);
+  };
+  check("slamm:\n  orb_features: 500\n", "'slamm' is not a known section");
+  check("slam:\n  orb_features: 500\n  orb_features: 600\n", "slam.orb_features is given twice");
+  check("slam:\n  orb_features: 500\nslam:\n  min_inliers: 12\n", "slam is given twice");
+  check("slam:\n  ? [a, b]\n  : 1\n", "slam: the key at line 2");
+  check("slam: 5\n", "'slam' must be a map");
+  check("slam:\n  orb_features: [500]\n", "slam.orb_features is not a valid value");
+}
+
 TEST(CliConfig, DeeplyNestedYamlIsNamedAsInvalidYaml) {
   const fs::path dir = test_dir();
   const fs::path base = simulate_base(dir);
   const std::string deep = "x: " + std::string(5000, '[') + std::string(5000, ']') + "\n";
+  std::ofstream(dir / "deep.yaml") << "slam:\n  orb_features: 500\n" << deep;
+  expect_input_error(replay(base, dir / "out", "--config " + (dir / "deep.yaml").string()), "deep.yaml",
+                     "not valid YAML (nested too deep)");
   const fs::path recording = with_calibration_edit(base, "deep", "depth_scale:", deep + "depth_scale:");
   expect_input_error(replay(recording, dir / "out"), "calibration.yaml", "not valid YAML (nested too deep)");
+}
+
+TEST(CliConfig, RunRejectsANonFiniteSlamValueByFileAndKey) {
+  const fs::path dir = test_dir();
+  std::ofstream(dir / "robot.yaml") << "camera: {source: 'replay:rec'}\ncan: {interface: vcan0}\n"
+                                       "slam:\n  max_depth_m: .nan\n";
+  expect_input_error(run("run --config " + (dir / "robot.yaml").string() + " --out " + (dir / "out").string()),
+                     "robot.yaml", "slam.max_depth_m");
+  std::ofstream(dir / "robot.yaml", std::ios::trunc) << "camera: {source: 'replay:rec', exit_after_end_s: .nan}\n";
+  expect_input_error(run("run --config " + (dir / "robot.yaml").string() + " --out " + (dir / "out").string()),
+                     "robot.yaml", "camera.exit_after_end_s");
 }
 
 TEST(CliConfig, ImplausibleCalibrationNumbersAreRejectedByFileAndKey) {
