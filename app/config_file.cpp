@@ -3,6 +3,7 @@
 #include "commands.hpp"
 #include "exit_codes.hpp"
 
+#include "rankslam/eval/json_writer.hpp"
 #include "rankslam/yaml/strict_yaml.hpp"
 
 #include <iostream>
@@ -94,10 +95,10 @@ std::string slam_config_json(slam::SlamConfig config) {
   std::ostringstream text;
   text << "\"mode\": \"" << slam::to_string(config.mode) << "\"";
   config.visit_parameters([&](const char* name, auto& field, auto, auto, const char*, const char*) {
-    text << ", \"" << name << "\": " << field;
+    text << ", \"" << name << "\": " << eval::json_number(field);
   });
   config.geometry.visit_parameters([&](auto name, auto& field, auto, auto, auto, auto) {
-    text << ", \"geometry." << name << "\": " << field;
+    text << ", \"geometry." << name << "\": " << eval::json_number(field);
   });
   return text.str();
 }

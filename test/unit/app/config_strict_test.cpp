@@ -9,6 +9,7 @@
 #include <cmath>
 #include <filesystem>
 #include <fstream>
+#include <limits>
 #include <string>
 #include <type_traits>
 #include <vector>
@@ -85,6 +86,18 @@ TEST_F(ConfigStrictTest, ANonFiniteValueNeverReachesTheConfiguration) {
   EXPECT_NE(load_slam_config(write("slam:\n  max_depth_m: .nan\n"), config), "");
   EXPECT_EQ(config.max_depth_m, max_depth_m);
   EXPECT_EQ(replay_config("slam:\n  max_depth_m: .nan\n"), kExitInput);
+}
+
+TEST_F(ConfigStrictTest, ReportJsonHoldsNullForANonFiniteParameter) {
+  slam::SlamConfig config;
+  config.map.voxel_m = std::numeric_limits<double>::quiet_NaN();
+  config.max_depth_m = std::numeric_limits<double>::infinity();
+  const std::string json = slam_config_json(config);
+  EXPECT_NE(json.find("\"map_voxel_m\": null"), std::string::npos) << json;
+  EXPECT_NE(json.find("\"max_depth_m\": null"), std::string::npos) << json;
+  for (const char* bare : {": nan", ": inf", ": -nan", ": -inf"}) EXPECT_EQ(json.find(bare), std::string::npos) << json;
+  // Finite values print as before.
+  EXPECT_NE(slam_config_json(slam::SlamConfig{}).find("\"max_depth_m\": 4,"), std::string::npos);
 }
 
 TEST_F(ConfigStrictTest, ReplayConfigRejectsUnknownSectionsLikeRun) {
