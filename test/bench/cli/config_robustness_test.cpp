@@ -3,6 +3,7 @@
 #include <gtest/gtest.h>
 
 #include <sys/wait.h>
+#include <unistd.h>
 
 #include <array>
 #include <cstdio>
@@ -40,10 +41,11 @@ std::string slurp(const fs::path& path) {
   return text.str();
 }
 
-// A folder of this test's own (ctest runs the tests of this file in parallel processes).
+// A folder of this test's own: ctest runs the tests in parallel processes, other checkouts may too.
 fs::path test_dir() {
   const auto* info = ::testing::UnitTest::GetInstance()->current_test_info();
-  const fs::path dir = fs::temp_directory_path() / (std::string("rankslam_cli_config_") + info->name());
+  const fs::path dir =
+      fs::temp_directory_path() / ("rankslam_cli_config_" + std::string(info->name()) + "_" + std::to_string(::getpid()));
   fs::remove_all(dir);
   fs::create_directories(dir);
   return dir;
@@ -70,6 +72,15 @@ fs::path with_calibration_edit(const fs::path& base, const std::string& name, co
   return copy;
 }
 
+// Each test in a folder of its own, removed afterwards.
+class CliConfig : public ::testing::Test {
+ protected:
+  void SetUp() override { dir_ = test_dir(); }
+  void TearDown() override { fs::remove_all(dir_); }
+
+  fs::path dir_;
+};
+
 CommandResult replay(const fs::path& recording, const fs::path& out, const std::string& extra = {}) {
   return run("replay " + recording.string() + " --out " + out.string() + " --max-frames 3 --quiet " + extra);
 }
@@ -81,8 +92,8 @@ void expect_input_error(const CommandResult& result, const std::string& file, co
   EXPECT_EQ(result.output.find("internal error"), std::string::npos) << result.output;
 }
 
-TEST(CliConfig, NonFiniteConfigValuesAreRejectedByFileAndKey) {
-  const fs::path dir = test_dir();
+TEST_F(CliConfig, NonFiniteConfigValuesAreRejectedByFileAndKey) {
+  const fs::path& dir = dir_;
   const fs::path base = simulate_base(dir);
   for (const auto& [key, value] : {std::pair<std::string, std::string>{"slam.max_depth_m", ".nan"},
                                    {"slam.map_voxel_m", ".nan"},
@@ -98,8 +109,8 @@ TEST(CliConfig, NonFiniteConfigValuesAreRejectedByFileAndKey) {
   }
 }
 
-TEST(CliConfig, UnknownSectionsDuplicateAndComplexKeysAreRejected) {
-  const fs::path dir = test_dir();
+TEST_F(CliConfig, UnknownSectionsDuplicateAndComplexKeysAreRejected) {
+  const fs::path& dir = dir_;
   const fs::path base = simulate_base(dir);
   const auto check = [&](const std::string& text, const std::string& key) {
     const fs::path config = dir / "config.yaml";
@@ -115,8 +126,8 @@ TEST(CliConfig, UnknownSectionsDuplicateAndComplexKeysAreRejected) {
   check("slam:\n  orb_features: [500]\n", "slam.orb_features is not a valid value");
 }
 
-TEST(CliConfig, DeeplyNestedYamlIsNamedAsInvalidYaml) {
-  const fs::path dir = test_dir();
+TEST_F(CliConfig, DeeplyNestedYamlIsNamedAsInvalidYaml) {
+  const fs::path& dir = dir_;
   const fs::path base = simulate_base(dir);
   const std::string deep = "x: " + std::string(5000, '[') + std::string(5000, ']') + "\n";
   std::ofstream(dir / "deep.yaml") << "slam:\n  orb_features: 500\n" << deep;
@@ -126,8 +137,8 @@ TEST(CliConfig, DeeplyNestedYamlIsNamedAsInvalidYaml) {
   expect_input_error(replay(recording, dir / "out"), "calibration.yaml", "not valid YAML (nested too deep)");
 }
 
-TEST(CliConfig, RunRejectsANonFiniteSlamValueByFileAndKey) {
-  const fs::path dir = test_dir();
+TEST_F(CliConfig, RunRejectsANonFiniteSlamValueByFileAndKey) {
+  const fs::path& dir = dir_;
   std::ofstream(dir / "robot.yaml") << "camera: {source: 'replay:rec'}\ncan: {interface: vcan0}\n"
                                        "slam:\n  max_depth_m: .nan\n";
   expect_input_error(run("run --config " + (dir / "robot.yaml").string() + " --out " + (dir / "out").string()),
@@ -137,8 +148,8 @@ TEST(CliConfig, RunRejectsANonFiniteSlamValueByFileAndKey) {
                      "robot.yaml", "camera.exit_after_end_s");
 }
 
-TEST(CliConfig, ImplausibleCalibrationNumbersAreRejectedByFileAndKey) {
-  const fs::path dir = test_dir();
+TEST_F(CliConfig, ImplausibleCalibrationNumbersAreRejectedByFileAndKey) {
+  const fs::path& dir = dir_;
   const fs::path base = simulate_base(dir);
   struct Case {
     const char* name;
@@ -168,8 +179,8 @@ TEST(CliConfig, ImplausibleCalibrationNumbersAreRejectedByFileAndKey) {
   }
 }
 
-TEST(CliConfig, MisspeltCalibrationKeysAreRejectedByKeyPath) {
-  const fs::path dir = test_dir();
+TEST_F(CliConfig, MisspeltCalibrationKeysAreRejectedByKeyPath) {
+  const fs::path& dir = dir_;
   const fs::path base = simulate_base(dir);
   struct Case {
     const char* name;
@@ -190,8 +201,8 @@ TEST(CliConfig, MisspeltCalibrationKeysAreRejectedByKeyPath) {
   }
 }
 
-TEST(CliConfig, CalibrationNodesOfTheWrongTypeAreRejectedByKeyPath) {
-  const fs::path dir = test_dir();
+TEST_F(CliConfig, CalibrationNodesOfTheWrongTypeAreRejectedByKeyPath) {
+  const fs::path& dir = dir_;
   const fs::path base = simulate_base(dir);
   const std::string camera = "cameras:\n  rgb:\n    model: pinhole\n    width: 640\n    height: 480\n";
   const std::string intrinsics = "    intrinsics: [517.3, 516.5, 318.6, 255.3]\n";
@@ -226,8 +237,8 @@ TEST(CliConfig, CalibrationNodesOfTheWrongTypeAreRejectedByKeyPath) {
                      "calibration.yaml", "is not a plain name");
 }
 
-TEST(CliConfig, ValidFilesStillReplayAndTheReportIsJson) {
-  const fs::path dir = test_dir();
+TEST_F(CliConfig, ValidFilesStillReplayAndTheReportIsJson) {
+  const fs::path& dir = dir_;
   const fs::path base = simulate_base(dir);
   const fs::path config = fs::path(RANKSLAM_SOURCE_DIR) / "deploy/config/default.yaml";
   const auto result = replay(base, dir / "out", "--config " + config.string());
