@@ -3,9 +3,9 @@
 #include "commands.hpp"
 #include "exit_codes.hpp"
 
+#include "rankslam/eval/json_writer.hpp"
 #include "rankslam/hal/file_set.hpp"
-
-#include <yaml-cpp/yaml.h>
+#include "rankslam/yaml/strict_yaml.hpp"
 
 #include <iostream>
 #include <set>
@@ -17,64 +17,63 @@ namespace rankslam::app {
 
 namespace {
 
+// The sections the loaders here read; any other must be read by the caller's own loader.
+const std::set<std::string> kPipelineSections = {"slam", "geometry", "wheel_odometry"};
+
 // Reads the numeric parameters a config struct declares through visit_parameters from one YAML
-// section; every key must be one of them or in `named` (handled by the caller).
+// section; every key must be one of them.
 template <typename Config>
-std::string load_section(const std::filesystem::path& path, const YAML::Node& section, const char* section_name,
-                         std::set<std::string> known, Config& config) {
+std::string load_section(const std::filesystem::path& path, const YAML::Node& section, const std::string& section_name,
+                         Config& config) {
+  std::set<std::string> known;
+  config.visit_parameters([&](auto name, auto&, auto, auto, auto, auto) { known.insert(name); });
+  if (auto error = yaml::check_map(section, section_name, known, "parameter"); !error.empty()) {
+    return path.string() + ": " + error;
+  }
   std::string error;
   config.visit_parameters([&](auto name_arg, auto& field, auto min, auto max, auto /*unit*/, auto /*doc*/) {
     const std::string name(name_arg);
-    known.insert(name);
     if (!error.empty() || !section[name]) return;
     using Field = std::remove_reference_t<decltype(field)>;
-    Field value{};
-    try {
-      value = section[name].template as<Field>();
-    } catch (const YAML::Exception&) {
-      error = path.string() + ": " + section_name + "." + name + " is not a valid number";
-      return;
-    }
-    if (value < static_cast<Field>(min) || value > static_cast<Field>(max)) {
-      std::ostringstream message;
-      message << path.string() << ": " << section_name << "." << name << " = " << value << " is outside " << min
-              << " .. " << max;
-      error = message.str();
-      return;
-    }
-    field = value;
+    error = yaml::read_number(section[name], section_name + "." + name, static_cast<Field>(min),
+                              static_cast<Field>(max), field);
   });
-  if (!error.empty()) return error;
-  for (const auto& entry : section) {
-    const auto key = entry.first.as<std::string>();
-    if (!known.contains(key)) return path.string() + ": " + section_name + "." + key + " is not a known parameter";
-  }
+  if (!error.empty()) return path.string() + ": " + error;
   return {};
 }
 
-// The whole file, or why it cannot be read (naming the file).
+// The whole file, read strictly; a map of sections, or nothing (an empty file: every default).
 std::string read_yaml(const std::filesystem::path& path, YAML::Node& root) {
-  try {
-    root = YAML::LoadFile(path.string());
-  } catch (const YAML::Exception& error) {
-    return path.string() + ": " + error.what();
-  }
+  if (auto error = yaml::load_file(path, root); !error.empty()) return path.string() + ": " + error;
+  if (!root.IsNull() && !root.IsMap()) return path.string() + ": expected a map of sections";
   return {};
 }
 
 }  // namespace
 
+std::string read_config_file(const std::filesystem::path& path, const std::set<std::string>& other_sections,
+                             YAML::Node& root) {
+  if (auto error = read_yaml(path, root); !error.empty()) return error;
+  if (root.IsNull()) return {};
+  std::set<std::string> known = other_sections;
+  known.insert(kPipelineSections.begin(), kPipelineSections.end());
+  if (auto error = yaml::check_map(root, "", known, "section"); !error.empty()) {
+    std::string names;
+    for (const auto& name : known) names += (names.empty() ? "" : ", ") + name;
+    return path.string() + ": " + error + " (sections: " + names + ")";
+  }
+  return {};
+}
+
 std::string load_slam_config(const std::filesystem::path& path, slam::SlamConfig& config) {
   YAML::Node root;
   if (auto error = read_yaml(path, root); !error.empty()) return error;
   if (const YAML::Node geometry = root["geometry"]) {
-    if (!geometry.IsMap()) return path.string() + ": 'geometry' must be a map of parameters";
-    if (auto error = load_section(path, geometry, "geometry", {}, config.geometry); !error.empty()) return error;
+    if (auto error = load_section(path, geometry, "geometry", config.geometry); !error.empty()) return error;
   }
   const YAML::Node section = root["slam"];
   if (!section) return {};
-  if (!section.IsMap()) return path.string() + ": 'slam' must be a map of parameters";
-  if (auto error = load_section(path, section, "slam", {}, config); !error.empty()) return error;
+  if (auto error = load_section(path, section, "slam", config); !error.empty()) return error;
   if (config.min_depth_m >= config.max_depth_m) return path.string() + ": slam.min_depth_m must be below slam.max_depth_m";
   return {};
 }
@@ -97,10 +96,10 @@ std::string slam_config_json(slam::SlamConfig config) {
   std::ostringstream text;
   text << "\"mode\": \"" << slam::to_string(config.mode) << "\"";
   config.visit_parameters([&](const char* name, auto& field, auto, auto, const char*, const char*) {
-    text << ", \"" << name << "\": " << field;
+    text << ", \"" << name << "\": " << eval::json_number(field);
   });
   config.geometry.visit_parameters([&](auto name, auto& field, auto, auto, auto, auto) {
-    text << ", \"geometry." << name << "\": " << field;
+    text << ", \"geometry." << name << "\": " << eval::json_number(field);
   });
   return text.str();
 }
@@ -110,8 +109,7 @@ std::string load_wheel_config(const std::filesystem::path& path, nav::WheelOdome
   if (auto error = read_yaml(path, root); !error.empty()) return error;
   const YAML::Node section = root["wheel_odometry"];
   if (!section) return {};
-  if (!section.IsMap()) return path.string() + ": 'wheel_odometry' must be a map of parameters";
-  return load_section(path, section, "wheel_odometry", {}, config);
+  return load_section(path, section, "wheel_odometry", config);
 }
 
 std::string describe_wheel_config(nav::WheelOdometryConfig config) {
@@ -124,8 +122,14 @@ std::string describe_wheel_config(nav::WheelOdometryConfig config) {
 }
 
 int load_pipeline_config(const std::filesystem::path& path, const std::string& mode_name,
-                         slam::SlamConfig& slam_config, nav::WheelOdometryConfig& wheel_config) {
+                         slam::SlamConfig& slam_config, nav::WheelOdometryConfig& wheel_config,
+                         const std::set<std::string>& other_sections) {
   if (!path.empty()) {
+    YAML::Node root;
+    if (auto error = read_config_file(path, other_sections, root); !error.empty()) {
+      std::cerr << "error: " << error << "\n";
+      return kExitInput;
+    }
     if (auto error = load_slam_config(path, slam_config); !error.empty()) {
       std::cerr << "error: " << error << "\n";
       return kExitInput;

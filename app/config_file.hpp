@@ -3,13 +3,24 @@
 #include "rankslam/nav/wheel_odometry.hpp"
 #include "rankslam/slam/config.hpp"
 
+#include <yaml-cpp/yaml.h>
+
 #include <filesystem>
+#include <set>
 #include <string>
 
 namespace rankslam::app {
 
-/// Overrides `config` with the `slam:` section of a YAML file. Unknown keys and out-of-range
-/// values are errors naming the file and the key. Empty string on success.
+/// Reads the configuration file `path` into `root` by the rules of every YAML file we read
+/// (yaml::load_file: valid YAML, plain keys, none twice) and checks that each top-level section is
+/// one the loaders here read (slam, geometry, wheel_odometry) or one of `other_sections`, which the
+/// caller reads. Error naming the file and the section, empty on success.
+[[nodiscard]] std::string read_config_file(const std::filesystem::path& path,
+                                           const std::set<std::string>& other_sections, YAML::Node& root);
+
+/// Overrides `config` with the `slam:` and `geometry:` sections of a YAML file. Unknown keys, and
+/// values that are not finite numbers within their range, are errors naming the file and the key.
+/// Empty string on success.
 [[nodiscard]] std::string load_slam_config(const std::filesystem::path& path, slam::SlamConfig& config);
 
 /// Every effective parameter, one "slam.name = value unit  # doc" line each.
@@ -26,10 +37,12 @@ namespace rankslam::app {
 [[nodiscard]] std::string describe_wheel_config(nav::WheelOdometryConfig config);
 
 /// What `replay` and `run` configure alike: the slam and wheel_odometry sections of `path` (the
-/// defaults when empty) and the registration named `mode_name` (kDefaultMode when empty). kExitOk,
+/// defaults when empty) and the registration named `mode_name` (kDefaultMode when empty). Sections
+/// other than the pipeline's and `other_sections` (those the caller reads) are errors. kExitOk,
 /// or the exit code after printing why not.
 [[nodiscard]] int load_pipeline_config(const std::filesystem::path& path, const std::string& mode_name,
-                                       slam::SlamConfig& slam_config, nav::WheelOdometryConfig& wheel_config);
+                                       slam::SlamConfig& slam_config, nav::WheelOdometryConfig& wheel_config,
+                                       const std::set<std::string>& other_sections = {});
 
 /// Creates the output directory `dir`, removes what killed runs left there and test-writes a file,
 /// so an unwritable `dir` stops the run before it starts; kExitOk, or kExitOutput after printing why not.

@@ -1,7 +1,11 @@
 #include "robot_config.hpp"
 
-#include <yaml-cpp/yaml.h>
+#include "config_file.hpp"
 
+#include "rankslam/yaml/strict_yaml.hpp"
+
+#include <cstdint>
+#include <limits>
 #include <map>
 #include <set>
 #include <sstream>
@@ -9,9 +13,8 @@
 namespace rankslam::app {
 namespace {
 
-// Sections of the file: this loader's own (the keys of kKeys) and those the SLAM configuration
-// loaders read (`slam` and `geometry`: load_slam_config; `wheel_odometry`: load_wheel_config).
-const std::set<std::string> kSections = {"robot", "camera", "can", "output", "slam", "geometry", "wheel_odometry"};
+// This loader's sections and their keys; `slam`, `geometry` and `wheel_odometry` are
+// load_pipeline_config's (read_config_file knows them).
 const std::map<std::string, std::set<std::string>> kKeys = {
     {"robot", {"name"}},
     {"camera", {"source", "replay_rate", "max_frames", "exit_after_end_s", "calibration", "width", "height", "fps", "ir"}},
@@ -20,6 +23,7 @@ const std::map<std::string, std::set<std::string>> kKeys = {
                 "max_trajectory_poses"}},
 };
 
+// A string or boolean.
 template <typename T>
 std::string read(const YAML::Node& section, const std::string& where, const char* key, T& value) {
   const YAML::Node node = section[key];
@@ -32,26 +36,35 @@ std::string read(const YAML::Node& section, const std::string& where, const char
   return {};
 }
 
+// A number, finite and within [min, max].
+template <typename T>
+std::string read_number(const YAML::Node& section, const std::string& where, const char* key, T min, T max, T& value) {
+  const YAML::Node node = section[key];
+  if (!node) return {};
+  return yaml::read_number(node, where + "." + key, min, max, value);
+}
+
+// Any finite value: nav::validate checks the output's ranges.
+constexpr double kAnyFinite = std::numeric_limits<double>::max();
+
 }  // namespace
+
+const std::set<std::string>& robot_config_sections() {
+  static const std::set<std::string> sections = [] {
+    std::set<std::string> names;
+    for (const auto& [name, keys] : kKeys) names.insert(name);
+    return names;
+  }();
+  return sections;
+}
 
 std::string load_robot_config(const std::filesystem::path& path, RobotConfig& config) {
   YAML::Node root;
-  try {
-    root = YAML::LoadFile(path.string());
-  } catch (const YAML::Exception& error) {
-    return path.string() + ": " + error.what();
-  }
-  if (!root.IsMap()) return path.string() + ": expected a map of sections (camera, can, output, slam)";
+  if (auto error = read_config_file(path, robot_config_sections(), root); !error.empty()) return error;
   const std::string file = path.string() + ": ";
-  for (const auto& entry : root) {
-    const auto name = entry.first.as<std::string>();
-    if (!kSections.contains(name)) return file + "'" + name + "' is not a known section";
-    if (!kKeys.contains(name)) continue;  // another loader's section
-    if (!entry.second.IsMap()) return file + "'" + name + "' must be a map";
-    for (const auto& key : entry.second) {
-      const auto key_name = key.first.as<std::string>();
-      if (!kKeys.at(name).contains(key_name)) return file + name + "." + key_name + " is not a known parameter";
-    }
+  for (const auto& [name, keys] : kKeys) {
+    if (!root[name]) continue;
+    if (auto error = yaml::check_map(root[name], name, keys, "parameter"); !error.empty()) return file + error;
   }
 
   std::string error;
@@ -75,26 +88,21 @@ std::string load_robot_config(const std::filesystem::path& path, RobotConfig& co
   } else {
     return file + "camera.source '" + source + "' must start with replay: or openni2:";
   }
-  check(read(camera, "camera", "replay_rate", config.replay_rate));
-  check(read(camera, "camera", "max_frames", config.max_frames));
-  check(read(camera, "camera", "exit_after_end_s", config.exit_after_end_s));
+  check(read_number(camera, "camera", "replay_rate", 0.0, 100.0, config.replay_rate));
+  check(read_number(camera, "camera", "max_frames", std::uint32_t{0}, std::numeric_limits<std::uint32_t>::max(),
+                    config.max_frames));
+  // Negative: until a signal; a million seconds (11 days) is as good as forever.
+  check(read_number(camera, "camera", "exit_after_end_s", -1e6, 1e6, config.exit_after_end_s));
   std::string calibration;
   check(read(camera, "camera", "calibration", calibration));
   if (!calibration.empty()) {
     config.camera_calibration = calibration;
     if (config.camera_calibration.is_relative()) config.camera_calibration = path.parent_path() / config.camera_calibration;
   }
-  check(read(camera, "camera", "width", config.camera_width));
-  check(read(camera, "camera", "height", config.camera_height));
-  check(read(camera, "camera", "fps", config.camera_fps));
+  check(read_number(camera, "camera", "width", 1, 4096, config.camera_width));
+  check(read_number(camera, "camera", "height", 1, 4096, config.camera_height));
+  check(read_number(camera, "camera", "fps", 1, 240, config.camera_fps));
   check(read(camera, "camera", "ir", config.camera_ir));
-  if (error.empty() && (config.camera_width < 1 || config.camera_width > 4096 || config.camera_height < 1 ||
-                        config.camera_height > 4096 || config.camera_fps < 1 || config.camera_fps > 240)) {
-    error = file + "camera.width/height must be 1 .. 4096 and camera.fps 1 .. 240";
-  }
-  if (error.empty() && !(config.replay_rate >= 0.0 && config.replay_rate <= 100.0)) {
-    error = file + "camera.replay_rate must be within 0 .. 100";
-  }
 
   const YAML::Node can = root["can"];
   if (can) {
@@ -108,10 +116,11 @@ std::string load_robot_config(const std::filesystem::path& path, RobotConfig& co
 
   const YAML::Node output = root["output"];
   if (output) {
-    check(read(output, "output", "pose_rate_hz", config.output.pose_rate_hz));
-    check(read(output, "output", "heartbeat_rate_hz", config.output.heartbeat_rate_hz));
-    check(read(output, "output", "watchdog_timeout_s", config.output.watchdog_timeout_s));
-    check(read(output, "output", "lost_after_failed_frames", config.output.lost_after_failed_frames));
+    check(read_number(output, "output", "pose_rate_hz", -kAnyFinite, kAnyFinite, config.output.pose_rate_hz));
+    check(read_number(output, "output", "heartbeat_rate_hz", -kAnyFinite, kAnyFinite, config.output.heartbeat_rate_hz));
+    check(read_number(output, "output", "watchdog_timeout_s", -kAnyFinite, kAnyFinite, config.output.watchdog_timeout_s));
+    check(read_number(output, "output", "lost_after_failed_frames", std::numeric_limits<int>::min(),
+                      std::numeric_limits<int>::max(), config.output.lost_after_failed_frames));
     check(read(output, "output", "wheel_propagation", config.output.wheel_propagation));
     std::string dir;
     check(read(output, "output", "dir", dir));
@@ -119,13 +128,11 @@ std::string load_robot_config(const std::filesystem::path& path, RobotConfig& co
       config.output_dir = dir;
       if (config.output_dir.is_relative()) config.output_dir = path.parent_path() / config.output_dir;
     }
-    check(read(output, "output", "max_trajectory_poses", config.max_trajectory_poses));
+    check(read_number(output, "output", "max_trajectory_poses", std::uint32_t{1}, std::uint32_t{10'000'000},
+                      config.max_trajectory_poses));
   }
   if (!error.empty()) return error;
   if (auto range = nav::validate(config.output); !range.empty()) return file + "output." + range;
-  if (config.max_trajectory_poses < 1 || config.max_trajectory_poses > 10'000'000) {
-    return file + "output.max_trajectory_poses must be within 1 .. 10000000";
-  }
   return {};
 }
 

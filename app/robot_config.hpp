@@ -3,6 +3,7 @@
 #include "rankslam/nav/pose_broadcaster.hpp"
 
 #include <filesystem>
+#include <set>
 #include <string>
 
 namespace rankslam::app {
@@ -52,8 +53,13 @@ struct RobotConfig {
   std::uint32_t max_trajectory_poses = 100000;
 };
 
-/// Reads every section but `slam:`; unknown keys and bad values are errors naming the file and
-/// the key. Empty string on success.
+/// The top-level sections load_robot_config reads (robot, camera, can, output); the file's
+/// `slam:`, `geometry:` and `wheel_odometry:` are load_pipeline_config's.
+[[nodiscard]] const std::set<std::string>& robot_config_sections();
+
+/// Reads every section but `slam:`; unknown sections and keys, keys given twice, and values that
+/// are not valid (numbers: finite, within range) are errors naming the file and the key. Empty
+/// string on success.
 [[nodiscard]] std::string load_robot_config(const std::filesystem::path& path, RobotConfig& config);
 
 /// Effective values, one "name = value  # doc" line each.

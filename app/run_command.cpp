@@ -36,7 +36,8 @@ int run_live(const RunArgs& args) {
   }
   slam::SlamConfig slam_config;
   nav::WheelOdometryConfig wheel_config;
-  if (const int code = load_pipeline_config(args.config, args.mode, slam_config, wheel_config); code != kExitOk) {
+  if (const int code = load_pipeline_config(args.config, args.mode, slam_config, wheel_config, robot_config_sections());
+      code != kExitOk) {
     return code;
   }
   const fs::path out = args.out.empty() ? robot.output_dir : args.out;

@@ -3,6 +3,7 @@
 #include "rankslam/hal/associate.hpp"
 #include "rankslam/hal/calibration.hpp"
 #include "rankslam/hal/messages.hpp"
+#include "rankslam/replay/calibration_file.hpp"
 
 #include <filesystem>
 #include <optional>
@@ -46,10 +47,6 @@ inline constexpr double kMaxAssociationGap_s = hal::kDefaultMaxDifference_s;
 /// Indexes a recording directory (see README, "Recording format"). Returns an error message
 /// naming the file and line on failure, an empty string on success.
 [[nodiscard]] std::string open_recording(const std::filesystem::path& root, Recording& recording);
-
-/// Reads a calibration.yaml (README, "calibration.yaml"). Error message naming file and field
-/// on failure, empty on success.
-[[nodiscard]] std::string load_calibration_yaml(const std::filesystem::path& path, hal::Calibration& calibration);
 
 /// The TUM benchmark's published calibration for camera "freiburg1", "freiburg2" or "freiburg3";
 /// nullopt for any other name.

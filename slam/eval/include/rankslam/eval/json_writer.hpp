@@ -3,10 +3,25 @@
 #include <cmath>
 #include <cstdio>
 #include <optional>
+#include <sstream>
 #include <string>
 #include <string_view>
+#include <type_traits>
 
 namespace rankslam::eval {
+
+/// `value` as a JSON number, as `std::ostream <<` prints it, or null when it is not finite:
+/// JSON has no nan or inf (for members formatted outside JsonWriter, see raw_object).
+template <typename T>
+[[nodiscard]] std::string json_number(T value) {
+  static_assert(std::is_arithmetic_v<T> && !std::is_same_v<T, bool>);
+  if constexpr (std::is_floating_point_v<T>) {
+    if (!std::isfinite(value)) return "null";
+  }
+  std::ostringstream text;
+  text << value;
+  return text.str();
+}
 
 /// Minimal JSON object writer for report.json: keys in insertion order, numbers printed with
 /// enough digits to round-trip, non-finite numbers and empty optionals as null.
@@ -57,7 +72,8 @@ class JsonWriter {
     text_ += "null";
     return *this;
   }
-  /// Inserts already-formatted JSON members (`"a": 1, "b": 2`) as an object under `key`.
+  /// Inserts already-formatted JSON members (`"a": 1, "b": 2`) as an object under `key`; their
+  /// numbers must be finite or null (json_number).
   JsonWriter& raw_object(std::string_view key, std::string_view members) {
     separator_and_key(key);
     text_ += '{';
