@@ -40,7 +40,8 @@ struct ReplayCounters {
 
 /// Plays a recording through the DepthCamera interface. Images are decoded on a reader thread
 /// into a fixed pool of slots allocated at open(); a missing or corrupt image skips the frame,
-/// counts it and names the file in a warning, never stops the replay.
+/// counts it and names the file in a warning, never stops the replay. Image files are read only
+/// when they are regular files of at most 64 MiB whose header gives the calibration's size.
 class ReplayDepthCamera final : public hal::DepthCamera {
  public:
   /// Slots in the decode pool: one being read by the consumer, the rest decoded ahead.
@@ -71,6 +72,8 @@ class ReplayDepthCamera final : public hal::DepthCamera {
   };
 
   void reader_loop();
+  /// The reader thread's work, from frame `index` on; `index` tells how far it got.
+  void read_frames(std::uint32_t& index);
   /// Decodes frame `index` into `slot`; an empty string on success, else what went wrong.
   std::string decode_into(std::uint32_t index, Slot& slot);
 
