@@ -6,6 +6,7 @@
 
 #include <cerrno>
 #include <cstring>
+#include <system_error>
 
 namespace rankslam::hal {
 namespace {
@@ -81,6 +82,22 @@ std::string read_regular_file(const std::filesystem::path& path, std::size_t max
 
 std::string read_regular_file(const std::filesystem::path& path, std::size_t max_bytes, std::string& text) {
   return read_into(path, max_bytes, text);
+}
+
+std::string check_regular_file(const std::filesystem::path& path, std::size_t max_bytes) {
+  struct stat info {};
+  if (::stat(path.c_str(), &info) != 0) return "cannot open " + path.string() + ": " + std::strerror(errno);
+  return check_stat(path, info, max_bytes);
+}
+
+bool path_exists(const std::filesystem::path& path, std::string& error) {
+  std::error_code ec;
+  const auto status = std::filesystem::status(path, ec);
+  if (ec && ec != std::errc::no_such_file_or_directory && ec != std::errc::not_a_directory) {
+    error = path.string() + ": " + ec.message();
+    return false;
+  }
+  return std::filesystem::exists(status);
 }
 
 }  // namespace rankslam::hal

@@ -131,6 +131,35 @@ TEST(CliInput, AFifoAsImageIsSkippedWithoutWaiting) {
   EXPECT_TRUE(has(slurp(out_of(recording) / "report.json"), "\"skipped_frames\": 1"));
 }
 
+TEST(CliInput, AFifoAsListFileOrCanLogIsRefusedByName) {
+  for (const std::string name : {"can.log", "associations.txt", "groundtruth.txt", "calibration.yaml"}) {
+    const fs::path recording = simulated("fifo_list");
+    fs::remove(recording / name);
+    ASSERT_EQ(::mkfifo((recording / name).c_str(), 0600), 0);
+    const auto result = replay(recording, "", 60);
+    EXPECT_EQ(result.exit_code, 3) << name << "\n" << result.output;
+    EXPECT_TRUE(has(result.output, (recording / name).string() + ": a FIFO")) << name << "\n" << result.output;
+  }
+}
+
+TEST(CliInput, ADeviceAsCanLogIsRefusedByName) {
+  const fs::path recording = simulated("devzero_can");
+  fs::remove(recording / "can.log");
+  fs::create_symlink("/dev/zero", recording / "can.log");
+  const auto result = replay(recording, "", 60);
+  EXPECT_EQ(result.exit_code, 3) << result.output;
+  EXPECT_TRUE(has(result.output, (recording / "can.log").string() + ": a character device")) << result.output;
+}
+
+TEST(CliInput, AnOversizedListFileIsRefusedByName) {
+  const fs::path recording = simulated("big_list");
+  fs::resize_file(recording / "associations.txt", (std::uintmax_t{64} << 20U) + 1);
+  const auto result = replay(recording);
+  EXPECT_EQ(result.exit_code, 3) << result.output;
+  EXPECT_TRUE(has(result.output, (recording / "associations.txt").string() + ": 67108865 bytes, more than the 64 MiB"))
+      << result.output;
+}
+
 // A PNG header, with valid checksums, declaring a colour image of width x height and no pixels.
 std::string png_declaring(std::uint32_t width, std::uint32_t height) {
   const auto crc32 = [](const std::string& bytes) {
@@ -175,6 +204,19 @@ TEST(CliInput, AThreeChannelDepthImageIsSkipped) {
   ASSERT_EQ(result.exit_code, 0) << result.output;
   EXPECT_TRUE(has(result.output, depth_file + ": 3 channels of 16 bits")) << result.output;
   EXPECT_TRUE(has(slurp(out_of(recording) / "report.json"), "\"skipped_frames\": 1"));
+}
+
+TEST(CliInput, ASymlinkLoopIsAnInputErrorNamingTheFile) {
+  for (const std::string name : {"associations.txt", "groundtruth.txt"}) {
+    const fs::path recording = simulated("symlink_loop");
+    fs::remove(recording / name);
+    fs::create_symlink("loop_b", recording / "loop_a");
+    fs::create_symlink("loop_a", recording / "loop_b");
+    fs::create_symlink("loop_a", recording / name);
+    const auto result = replay(recording);
+    EXPECT_EQ(result.exit_code, 3) << name << "\n" << result.output;
+    EXPECT_TRUE(has(result.output, (recording / name).string())) << name << "\n" << result.output;
+  }
 }
 
 }  // namespace

@@ -40,6 +40,7 @@ TEST(RegularFile, RefusesWhatIsNotARegularFileWithoutWaiting) {
   EXPECT_EQ(read_regular_file(dir / "fifo", 1024, text), (dir / "fifo").string() + ": a FIFO, not a regular file");
   EXPECT_EQ(read_regular_file(dir, 1024, text), dir.string() + ": a directory, not a regular file");
   EXPECT_EQ(read_regular_file("/dev/zero", 1024, text), "/dev/zero: a character device, not a regular file");
+  EXPECT_EQ(check_regular_file(dir / "fifo", 1024), (dir / "fifo").string() + ": a FIFO, not a regular file");
   EXPECT_NE(read_regular_file(dir / "absent", 1024, text).find("cannot open " + (dir / "absent").string()),
             std::string::npos);
 }
@@ -52,6 +53,24 @@ TEST(RegularFile, RefusesAFileBeyondItsBoundBeforeReadingIt) {
   EXPECT_EQ(read_regular_file(dir / "big", std::size_t{64} << 20U, bytes),
             (dir / "big").string() + ": 21474836480 bytes, more than the 64 MiB such a file may have");
   EXPECT_EQ(bytes.capacity(), 0U);
+  EXPECT_NE(check_regular_file(dir / "big", std::size_t{64} << 20U).find("21474836480 bytes"), std::string::npos);
+  EXPECT_EQ(check_regular_file(dir / "big", std::size_t{32} << 30U), "");
+}
+
+TEST(RegularFile, PathExistsTellsASymlinkLoopFromAnAbsentFile) {
+  const fs::path dir = fresh_dir("rankslam_regular_exists");
+  fs::create_symlink("b", dir / "a");
+  fs::create_symlink("a", dir / "b");
+  fs::create_symlink("nowhere", dir / "dangling");
+  std::ofstream(dir / "file") << "x";
+  std::string error;
+  EXPECT_TRUE(path_exists(dir / "file", error));
+  EXPECT_EQ(error, "");
+  EXPECT_FALSE(path_exists(dir / "absent", error));
+  EXPECT_FALSE(path_exists(dir / "dangling", error));
+  EXPECT_EQ(error, "");
+  EXPECT_FALSE(path_exists(dir / "a", error));
+  EXPECT_NE(error.find((dir / "a").string() + ": "), std::string::npos) << error;
 }
 
 }  // namespace
