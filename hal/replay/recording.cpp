@@ -61,7 +61,9 @@ std::string read_stamped_list(const fs::path& path, std::vector<StampedFile>& en
   });
 }
 
-std::string read_associations(const fs::path& path, std::vector<FrameEntry>& frames) {
+std::string read_associations(const fs::path& path, std::vector<FrameEntry>& frames,
+                              std::vector<std::string>& warnings) {
+  std::vector<int> line_numbers;
   auto error = for_each_line(path, hal::kMaxListFileBytes, [&](const std::string& line, int line_number) -> std::string {
     if (is_comment_or_blank(line)) return {};
     std::istringstream fields(line);
@@ -72,9 +74,40 @@ std::string read_associations(const fs::path& path, std::vector<FrameEntry>& fra
              ": expected 'rgb_stamp rgb_file depth_stamp depth_file'";
     }
     frames.push_back(std::move(frame));
+    line_numbers.push_back(line_number);
     return {};
   });
-  if (!error.empty()) return error;
+  if (!error.empty() || frames.empty()) return error;
+  // One frame per colour stamp, as associate.py keys its lists by stamp: the first line is
+  // replayed, each later one with the same stamp (a line pasted twice) dropped with a warning.
+  std::vector<std::size_t> order(frames.size());
+  for (std::size_t i = 0; i < order.size(); ++i) order[i] = i;
+  std::stable_sort(order.begin(), order.end(),
+                   [&](std::size_t a, std::size_t b) { return frames[a].rgb_stamp_s < frames[b].rgb_stamp_s; });
+  std::vector<bool> duplicate(frames.size(), false);
+  std::size_t duplicates = 0;
+  for (std::size_t k = 1, first = order[0]; k < order.size(); ++k) {
+    const std::size_t i = order[k];
+    if (frames[i].rgb_stamp_s != frames[first].rgb_stamp_s) {
+      first = i;
+      continue;
+    }
+    duplicate[i] = true;
+    if (++duplicates <= 3) {
+      warnings.push_back(path.string() + ":" + std::to_string(line_numbers[i]) + ": colour stamp already on line " +
+                         std::to_string(line_numbers[first]) + ", line dropped");
+    }
+  }
+  if (duplicates > 3) {
+    warnings.push_back(path.string() + ": " + std::to_string(duplicates) + " lines repeating a colour stamp dropped in all");
+  }
+  std::size_t kept = 0;
+  for (std::size_t i = 0; i < frames.size(); ++i) {
+    if (duplicate[i]) continue;
+    if (kept != i) frames[kept] = std::move(frames[i]);
+    ++kept;
+  }
+  frames.resize(kept);
   return {};
 }
 
@@ -343,7 +376,10 @@ std::string open_recording(const fs::path& root, Recording& recording) {
 
   // Colour-depth pairs: associations.txt when present, otherwise nearest stamps within 0.02 s.
   if (present("associations.txt")) {
-    if (auto error = read_associations(root / "associations.txt", recording.frames); !error.empty()) return error;
+    if (auto error = read_associations(root / "associations.txt", recording.frames, recording.warnings);
+        !error.empty()) {
+      return error;
+    }
   } else {
     std::vector<StampedFile> rgb;
     std::vector<StampedFile> depth;

@@ -206,6 +206,17 @@ TEST(CliInput, AThreeChannelDepthImageIsSkipped) {
   EXPECT_TRUE(has(slurp(out_of(recording) / "report.json"), "\"skipped_frames\": 1"));
 }
 
+TEST(CliInput, ARepeatedAssociationsLineIsReplayedOnce) {
+  const fs::path recording = simulated("dup_lines");
+  auto lines = lines_of(recording / "associations.txt");
+  lines.insert(lines.begin() + 3, lines[2]);
+  write_lines(recording / "associations.txt", lines);
+  const auto result = replay(recording);
+  ASSERT_EQ(result.exit_code, 0) << result.output;
+  EXPECT_TRUE(has(result.output, "associations.txt:4: colour stamp already on line 3, line dropped")) << result.output;
+  EXPECT_TRUE(has(slurp(out_of(recording) / "report.json"), "\"frames\": 20,"));
+}
+
 TEST(CliInput, ASymlinkLoopIsAnInputErrorNamingTheFile) {
   for (const std::string name : {"associations.txt", "groundtruth.txt"}) {
     const fs::path recording = simulated("symlink_loop");

@@ -116,6 +116,22 @@ TEST(Recording, MissingDirectoryIsAnError) {
   EXPECT_NE(open_recording("/nonexistent/recording", recording).find("/nonexistent/recording"), std::string::npos);
 }
 
+TEST(Recording, ARepeatedColourStampIsReplayedOnceAndNamed) {
+  const fs::path root = test::write_small_recording("rankslam_rec_duplicate", 4, true, true);
+  std::string text;
+  {
+    std::ifstream in(root / "associations.txt");
+    std::string line;
+    for (int i = 0; std::getline(in, line); ++i) text += line + "\n" + (i == 1 ? line + "\n" : "");
+  }
+  std::ofstream(root / "associations.txt", std::ios::trunc) << text;
+  Recording recording;
+  ASSERT_EQ(open_recording(root, recording), "");
+  EXPECT_EQ(recording.frames.size(), 4U);
+  ASSERT_EQ(recording.warnings.size(), 1U);
+  EXPECT_EQ(recording.warnings[0], (root / "associations.txt").string() + ":3: colour stamp already on line 2, line dropped");
+}
+
 TEST(Recording, ListFilesThatAreNotRegularFilesAreRefusedByName) {
   for (const char* name : {"associations.txt", "calibration.yaml", "groundtruth.txt", "can.log", "ir.txt", "fisheye.txt"}) {
     const fs::path root = test::write_small_recording("rankslam_rec_fifo", 3, true, true);
