@@ -217,6 +217,16 @@ TEST(CliInput, ARepeatedAssociationsLineIsReplayedOnce) {
   EXPECT_TRUE(has(slurp(out_of(recording) / "report.json"), "\"frames\": 20,"));
 }
 
+TEST(CliInput, ACanStampBeyondTheClockIsAMalformedLine) {
+  const fs::path recording = simulated("can_stamp");
+  auto lines = lines_of(recording / "can.log");
+  lines.at(4).replace(0, lines.at(4).find(')') + 1, "(99999999999.000000)");
+  write_lines(recording / "can.log", lines);
+  const auto result = replay(recording);
+  ASSERT_EQ(result.exit_code, 0) << result.output;
+  EXPECT_TRUE(has(result.output, "can.log:5: not a candump -l frame, skipped")) << result.output;
+}
+
 TEST(CliInput, ASymlinkLoopIsAnInputErrorNamingTheFile) {
   for (const std::string name : {"associations.txt", "groundtruth.txt"}) {
     const fs::path recording = simulated("symlink_loop");
