@@ -73,7 +73,10 @@ std::string ReplayDepthCamera::open() {
   const auto total = static_cast<std::uint32_t>(recording_.frames.size());
   frame_count_ = options_.max_frames > 0 ? std::min(options_.max_frames, total) : total;
   if (frame_count_ == 0) return recording_.root.string() + ": no frames to replay";
-  if (options_.rate < 0.0 || !std::isfinite(options_.rate)) return "replay rate must be 0 (as fast as possible) or positive";
+  if (!(options_.rate == 0.0 || (options_.rate >= kMinReplayRate && options_.rate <= kMaxReplayRate))) {
+    return "replay rate must be 0 (as fast as possible) or between " + std::to_string(kMinReplayRate) + " and " +
+           std::to_string(kMaxReplayRate);
+  }
   const auto& camera = recording_.calibration.rgb;
   for (auto& slot : slots_) {
     // Allocate every image once so decoding reuses the memory.
@@ -230,7 +233,10 @@ void ReplayDepthCamera::read_frames(std::uint32_t& index) {
               "): cannot be read (" + exception.what() + "), skipped";
     }
     if (options_.rate > 0.0) {
-      const double offset_s = (recording_.frames[index].rgb_stamp_s - first_stamp_s) / options_.rate;
+      // Capped so that a huge stamp gap (or a tiny rate) cannot overflow the clock's ticks.
+      constexpr double kMaxPacingWait_s = 365.0 * 24.0 * 3600.0;
+      const double offset_s =
+          std::min((recording_.frames[index].rgb_stamp_s - first_stamp_s) / options_.rate, kMaxPacingWait_s);
       const auto due = start + std::chrono::duration_cast<std::chrono::steady_clock::duration>(
                                    std::chrono::duration<double>(offset_s));
       std::unique_lock lock(mutex_);

@@ -227,6 +227,15 @@ TEST(CliInput, ACanStampBeyondTheClockIsAMalformedLine) {
   EXPECT_TRUE(has(result.output, "can.log:5: not a candump -l frame, skipped")) << result.output;
 }
 
+TEST(CliInput, ARateThatWouldOverflowThePacingIsAUsageError) {
+  const fs::path recording = simulated("rate");
+  for (const char* rate : {"1e-300", "1e300", "0.0001"}) {
+    const auto result = replay(recording, std::string("--rate ") + rate, 60);
+    EXPECT_EQ(result.exit_code, 2) << rate << "\n" << result.output;
+    EXPECT_TRUE(has(result.output, "--rate")) << rate << "\n" << result.output;
+  }
+}
+
 TEST(CliInput, ASymlinkLoopIsAnInputErrorNamingTheFile) {
   for (const std::string name : {"associations.txt", "groundtruth.txt"}) {
     const fs::path recording = simulated("symlink_loop");

@@ -7,6 +7,7 @@
 #include <sys/stat.h>
 
 #include <fstream>
+#include <limits>
 #include <thread>
 
 namespace rankslam::replay {
@@ -175,6 +176,24 @@ TEST(ReplayCamera, SizeAndLayoutAreCheckedFromTheHeaderBeforeDecoding) {
   ASSERT_EQ(warnings.size(), 2U);
   EXPECT_NE(warnings[0].find(": 30000x30000 but the calibration says 64x48, frame 1"), std::string::npos) << warnings[0];
   EXPECT_NE(warnings[1].find(recording.frames[2].depth_file + ": 3 channels of 16 bits"), std::string::npos) << warnings[1];
+}
+
+TEST(ReplayCamera, RatesWhosePacingWouldOverflowAreRefused) {
+  const fs::path root = test::write_small_recording("rankslam_replay_rates", 2, true, true);
+  Recording recording;
+  ASSERT_EQ(open_recording(root, recording), "");
+  for (const double rate : {1e-300, 1e-4, 1e4, -1.0, std::numeric_limits<double>::infinity()}) {
+    ReplayOptions options;
+    options.rate = rate;
+    ReplayDepthCamera camera(recording, options);
+    EXPECT_NE(camera.open().find("replay rate must be 0"), std::string::npos) << rate;
+  }
+  for (const double rate : {0.0, kMinReplayRate, kMaxReplayRate}) {
+    ReplayOptions options;
+    options.rate = rate;
+    ReplayDepthCamera camera(recording, options);
+    EXPECT_EQ(camera.open(), "") << rate;
+  }
 }
 
 }  // namespace

@@ -14,11 +14,15 @@
 
 namespace rankslam::replay {
 
+/// Slowest and fastest paced replay: a thousandth of the recorded rate to a thousand times it.
+inline constexpr double kMinReplayRate = 1e-3;
+inline constexpr double kMaxReplayRate = 1e3;
+
 /// How the replay camera paces a recording.
 struct ReplayOptions {
   /// 0 = as fast as the consumer takes frames (no frame is ever dropped);
-  /// otherwise play at this multiple of the recorded rate, dropping the oldest decoded frame
-  /// when the consumer falls behind, as a live sensor would.
+  /// otherwise play at this multiple of the recorded rate (kMinReplayRate .. kMaxReplayRate),
+  /// dropping the oldest decoded frame when the consumer falls behind, as a live sensor would.
   double rate = 0.0;
   /// Replay at most this many frames (0 = all).
   std::uint32_t max_frames = 0;
