@@ -160,6 +160,11 @@ int run_replay(const ReplayArgs& args) {
   camera.close();
   std::signal(SIGINT, SIG_DFL);
   std::signal(SIGTERM, SIG_DFL);
+  if (!interrupted && counters.delivered == 0) {
+    std::cerr << "error: no frame of " << recording.root.string() << " could be read (" << counters.corrupt
+              << " skipped, see the warnings above)\n";
+    return kExitInput;
+  }
 
   // Outputs: each written atomically, so an interrupted or failed run never leaves half a file.
   int exit_code = interrupted ? kExitInterrupted : kExitOk;

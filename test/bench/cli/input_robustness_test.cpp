@@ -217,6 +217,14 @@ TEST(CliInput, ARepeatedAssociationsLineIsReplayedOnce) {
   EXPECT_TRUE(has(slurp(out_of(recording) / "report.json"), "\"frames\": 20,"));
 }
 
+TEST(CliInput, ARecordingWithNoReadableFrameIsAnInputError) {
+  const fs::path recording = simulated("unreadable");
+  for (const auto& entry : fs::directory_iterator(recording / "rgb")) std::ofstream(entry.path()) << "x\n";
+  const auto result = replay(recording);
+  EXPECT_EQ(result.exit_code, 3) << result.output;
+  EXPECT_TRUE(has(result.output, "no frame of " + recording.string() + " could be read")) << result.output;
+}
+
 TEST(CliInput, ACanStampBeyondTheClockIsAMalformedLine) {
   const fs::path recording = simulated("can_stamp");
   auto lines = lines_of(recording / "can.log");
