@@ -225,6 +225,18 @@ TEST(CliInput, ARecordingWithNoReadableFrameIsAnInputError) {
   EXPECT_TRUE(has(result.output, "no frame of " + recording.string() + " could be read")) << result.output;
 }
 
+TEST(CliInput, EvalOfTooFewPosesIsAnInputError) {
+  const fs::path dir = fs::temp_directory_path() / "rankslam_input_eval";
+  fs::remove_all(dir);
+  fs::create_directories(dir);
+  std::ofstream(dir / "gt.txt") << "1.0 0 0 0 0 0 0 1\n2.0 1 0 0 0 0 0 1\n";
+  const auto result = run("eval " + (dir / "gt.txt").string() + " " + (dir / "gt.txt").string());
+  EXPECT_EQ(result.exit_code, 3) << result.output;
+  EXPECT_TRUE(has(result.output, (dir / "gt.txt").string())) << result.output;
+  EXPECT_TRUE(has(result.output, "at least 3 associated poses")) << result.output;
+  EXPECT_TRUE(has(result.output, "found 2")) << result.output;
+}
+
 TEST(CliInput, ACanStampBeyondTheClockIsAMalformedLine) {
   const fs::path recording = simulated("can_stamp");
   auto lines = lines_of(recording / "can.log");
