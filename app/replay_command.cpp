@@ -3,6 +3,7 @@
 #include "exit_codes.hpp"
 #include "frame_pipeline.hpp"
 #include "progress.hpp"
+#include "rankslam/nav/wheel_frame.hpp"
 #include "rankslam/nav/wheel_prior.hpp"
 
 #include "rankslam/eval/metrics.hpp"
@@ -105,6 +106,10 @@ int run_replay(const ReplayArgs& args) {
       return kExitInput;
     }
     wheels.emplace(wheel_config, *recording.calibration.wheels, recording.calibration.rgb.T_base_cam);
+    if (auto malformed = nav::describe_malformed_wheel_frames(recording.can_frames, recording.calibration.wheels->can_id);
+        !malformed.empty()) {
+      std::cerr << "warning: " << (recording.root / "can.log").string() << ": " << malformed << "\n";
+    }
   }
   if (!args.quiet) {
     std::cout << "wheels: "

@@ -237,6 +237,18 @@ TEST(CliInput, EvalOfTooFewPosesIsAnInputError) {
   EXPECT_TRUE(has(result.output, "found 2")) << result.output;
 }
 
+TEST(CliInput, WheelFramesOfTheWrongLengthAreCountedAndNamed) {
+  const fs::path recording = simulated("bad_wheel");
+  auto lines = lines_of(recording / "can.log");
+  lines.at(4) = lines.at(4).substr(0, lines.at(4).find('#') + 5);  // 2 data bytes instead of 8
+  write_lines(recording / "can.log", lines);
+  const auto result = replay(recording);
+  ASSERT_EQ(result.exit_code, 0) << result.output;
+  EXPECT_TRUE(has(result.output, "can.log: 1 wheel frames (identifier 0x101) are not 8 bytes long")) << result.output;
+  EXPECT_TRUE(has(result.output, "1700000000.040000 s with 2 bytes")) << result.output;
+  EXPECT_TRUE(has(slurp(out_of(recording) / "report.json"), "\"wheel_frames_malformed\": 1,"));
+}
+
 TEST(CliInput, ACanStampBeyondTheClockIsAMalformedLine) {
   const fs::path recording = simulated("can_stamp");
   auto lines = lines_of(recording / "can.log");
