@@ -148,7 +148,9 @@ int load_pipeline_config(const std::filesystem::path& path, const std::string& m
 int make_output_directory(const std::filesystem::path& dir) {
   std::error_code ec;
   std::filesystem::create_directories(dir, ec);
-  if (!std::filesystem::is_directory(dir)) {
+  // The error_code overload: a symbolic-link loop must be this message, not an exception.
+  if (std::error_code status_ec; !std::filesystem::is_directory(dir, status_ec)) {
+    if (!ec) ec = status_ec;
     std::cerr << "error: cannot create output directory " << dir << ": " << ec.message() << "\n";
     return kExitOutput;
   }

@@ -281,4 +281,16 @@ TEST(CliInput, ASymlinkLoopIsAnInputErrorNamingTheFile) {
   }
 }
 
+TEST(CliInput, AnOutputFolderInASymlinkLoopIsAnOutputErrorNamingIt) {
+  const fs::path recording = simulated("out_loop");
+  const fs::path out = out_of(recording);
+  fs::create_symlink(out.filename().string() + "_b", out);
+  fs::create_symlink(out.filename(), out.string() + "_b");
+  const auto result = run("replay " + recording.string() + " --out " + out.string() + " --quiet");
+  fs::remove(out.string() + "_b");
+  fs::remove(out);
+  EXPECT_EQ(result.exit_code, 4) << result.output;
+  EXPECT_TRUE(has(result.output, "cannot create output directory \"" + out.string() + "\"")) << result.output;
+}
+
 }  // namespace
