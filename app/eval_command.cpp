@@ -25,7 +25,8 @@ int run_eval(const EvalArgs& args) {
   options.rpe.delta_s = args.delta_s;
   auto result = eval::evaluate(ground_truth.value(), estimate.value(), options);
   if (!result) {
-    std::cerr << "error: " << result.error() << "\n";
+    std::cerr << "error: " << args.estimate.string() << " against " << args.ground_truth.string() << ": "
+              << result.error() << "\n";
     return kExitInput;
   }
   std::cout << eval::format_eval_text(result.value());

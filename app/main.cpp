@@ -2,6 +2,7 @@
 #include "commands.hpp"
 #include "exit_codes.hpp"
 
+#include "rankslam/replay/replay_camera.hpp"
 #include "rankslam/sim/simulator.hpp"
 
 #include <CLI/CLI.hpp>
@@ -24,7 +25,18 @@ int main(int argc, char** argv) {
   replay_cmd->add_option("--mode,-m", replay.mode, "Registration: baseline, photometric, geometric or fused (default: fused)");
   replay_cmd->add_option("--config,-c", replay.config, "YAML configuration (see deploy/config/default.yaml)")->check(CLI::ExistingFile);
   replay_cmd->add_option("--rate", replay.rate, "Play at this multiple of the recorded rate, dropping frames the loop cannot keep up with (0 = as fast as possible, lossless)")
-      ->check(CLI::NonNegativeNumber);
+      ->check(CLI::Validator(
+          [](std::string& text) -> std::string {
+            double rate = 0.0;
+            // Slower or faster, the replay's pacing would overflow its clock.
+            if (CLI::detail::lexical_cast(text, rate) &&
+                (rate == 0.0 || (rate >= rankslam::replay::kMinReplayRate && rate <= rankslam::replay::kMaxReplayRate))) {
+              return {};
+            }
+            return "--rate must be 0 (as fast as possible) or between " + std::to_string(rankslam::replay::kMinReplayRate) +
+                   " and " + std::to_string(rankslam::replay::kMaxReplayRate) + ", not " + text;
+          },
+          "0 or 0.001..1000"));
   replay_cmd->add_option("--max-frames", replay.max_frames, "Replay at most this many frames (0 = all)");
   replay_cmd->add_flag("--quiet,-q", replay.quiet, "Print only the summary");
   replay_cmd->add_flag("--decode-ahead", replay.decode_ahead, "Decode the next frames while the loop runs: a faster replay, but decoding then competes with the loop for the cores and its timings include that (without it, as on the robot, they do not)");

@@ -4,6 +4,7 @@
 #include "frame_pipeline.hpp"
 #include "progress.hpp"
 #include "stop_signals.hpp"
+#include "rankslam/nav/wheel_frame.hpp"
 #include "rankslam/nav/wheel_prior.hpp"
 
 #include "rankslam/eval/metrics.hpp"
@@ -97,6 +98,10 @@ int run_replay(const ReplayArgs& args) {
       return kExitInput;
     }
     wheels.emplace(wheel_config, *recording.calibration.wheels, recording.calibration.rgb.T_base_cam);
+    if (auto malformed = nav::describe_malformed_wheel_frames(recording.can_frames, recording.calibration.wheels->can_id);
+        !malformed.empty()) {
+      std::cerr << "warning: " << (recording.root / "can.log").string() << ": " << malformed << "\n";
+    }
   }
   if (!args.quiet) {
     std::cout << "wheels: "
@@ -149,6 +154,11 @@ int run_replay(const ReplayArgs& args) {
   const replay::ReplayCounters counters = camera.counters();
   for (const auto& warning : camera.take_warnings()) std::cerr << "warning: " << warning << "\n";
   camera.close();
+  if (!interrupted && counters.delivered == 0) {
+    std::cerr << "error: no frame of " << recording.root.string() << " could be read (" << counters.corrupt
+              << " skipped, see the warnings above)\n";
+    return kExitInput;
+  }
 
   // Outputs: one set published at the end, so OUT holds this run's files or the previous run's.
   hal::FileSet outputs(args.out);

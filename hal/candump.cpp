@@ -3,6 +3,7 @@
 #include <charconv>
 #include <cinttypes>
 #include <cstdio>
+#include <limits>
 
 namespace rankslam::hal {
 namespace {
@@ -32,6 +33,11 @@ std::optional<CanFrame> parse_candump_line(std::string_view line) {
     return std::nullopt;
   }
   for (std::size_t i = frac_text.size(); i < 9; ++i) fraction *= 10;
+  // candump stamps are never negative; a stamp whose nanoseconds overflow an int64 is no stamp.
+  if (sec_text.empty() || sec_text.front() == '-' || fraction < 0 ||
+      seconds > (std::numeric_limits<std::int64_t>::max() - fraction) / 1'000'000'000) {
+    return std::nullopt;
+  }
 
   auto rest = line.substr(close + 1);
   const auto iface_start = rest.find_first_not_of(' ');

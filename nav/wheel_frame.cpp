@@ -1,5 +1,8 @@
 #include "rankslam/nav/wheel_frame.hpp"
 
+#include <cinttypes>
+#include <cstdio>
+
 namespace rankslam::nav {
 namespace {
 
@@ -37,6 +40,25 @@ std::optional<WheelTicks> decode_wheel_ticks(const hal::CanFrame& frame) {
   ticks.left_fault = (frame.data[7] & 1U) != 0;
   ticks.right_fault = (frame.data[7] & 2U) != 0;
   return ticks;
+}
+
+std::string describe_malformed_wheel_frames(std::span<const hal::CanFrame> frames, std::uint32_t can_id) {
+  constexpr std::size_t kNamed = 3;
+  std::size_t count = 0;
+  std::string named;
+  for (const hal::CanFrame& frame : frames) {
+    if (frame.id != can_id || frame.extended || frame.length == kWheelTicksLength) continue;
+    if (++count > kNamed) continue;
+    char text[96];
+    std::snprintf(text, sizeof text, "%s%" PRId64 ".%06" PRId64 " s with %u bytes", named.empty() ? "" : ", ",
+                  frame.stamp_ns / 1'000'000'000, (frame.stamp_ns % 1'000'000'000) / 1000, unsigned{frame.length});
+    named += text;
+  }
+  if (count == 0) return {};
+  char head[96];
+  std::snprintf(head, sizeof head, "%zu wheel frames (identifier 0x%X) are not %u bytes long and are not used: ", count,
+                can_id, unsigned{kWheelTicksLength});
+  return head + named + (count > kNamed ? ", ..." : "");
 }
 
 }  // namespace rankslam::nav

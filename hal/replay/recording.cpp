@@ -2,11 +2,11 @@
 
 #include "rankslam/hal/associate.hpp"
 #include "rankslam/hal/candump.hpp"
+#include "rankslam/hal/regular_file.hpp"
 
 #include <algorithm>
 #include <cctype>
 #include <cmath>
-#include <fstream>
 #include <sstream>
 
 namespace rankslam::replay {
@@ -24,41 +24,88 @@ bool is_comment_or_blank(const std::string& line) {
   return first == std::string::npos || line[first] == '#';
 }
 
-// Reads a "timestamp filename" list (rgb.txt, depth.txt, ir.txt, fisheye.txt).
-std::string read_stamped_list(const fs::path& path, std::vector<StampedFile>& entries) {
-  std::ifstream in(path);
-  if (!in) return "cannot open " + path.string();
+// A stamp whose nanoseconds fit an int64, as every clock downstream counts them.
+bool is_valid_stamp(double stamp_s) { return std::abs(stamp_s) <= kMaxStamp_s; }
+
+// Reads a list file whole (a regular file, size-bounded) and hands each line with its number
+// to `parse`, which returns an error message or an empty string; the first error stops.
+template <typename Parse>
+std::string for_each_line(const fs::path& path, std::size_t max_bytes, Parse&& parse) {
+  std::string text;
+  if (auto error = hal::read_regular_file(path, max_bytes, text); !error.empty()) return error;
   std::string line;
   int line_number = 0;
-  while (std::getline(in, line)) {
+  for (std::size_t at = 0; at < text.size();) {
+    const auto newline = std::min(text.find('\n', at), text.size());
+    line.assign(text, at, newline - at);
+    at = newline + 1;
     ++line_number;
-    if (is_comment_or_blank(line)) continue;
-    std::istringstream fields(line);
-    StampedFile entry;
-    if (!(fields >> entry.stamp_s >> entry.file) || !std::isfinite(entry.stamp_s)) {
-      return path.string() + ":" + std::to_string(line_number) + ": expected 'timestamp filename'";
-    }
-    entries.push_back(std::move(entry));
+    if (auto error = parse(line, line_number); !error.empty()) return error;
   }
   return {};
 }
 
-std::string read_associations(const fs::path& path, std::vector<FrameEntry>& frames) {
-  std::ifstream in(path);
-  if (!in) return "cannot open " + path.string();
-  std::string line;
-  int line_number = 0;
-  while (std::getline(in, line)) {
-    ++line_number;
-    if (is_comment_or_blank(line)) continue;
+// Reads a "timestamp filename" list (rgb.txt, depth.txt, ir.txt, fisheye.txt).
+std::string read_stamped_list(const fs::path& path, std::vector<StampedFile>& entries) {
+  return for_each_line(path, hal::kMaxListFileBytes, [&](const std::string& line, int line_number) -> std::string {
+    if (is_comment_or_blank(line)) return {};
+    std::istringstream fields(line);
+    StampedFile entry;
+    if (!(fields >> entry.stamp_s >> entry.file) || !is_valid_stamp(entry.stamp_s)) {
+      return path.string() + ":" + std::to_string(line_number) + ": expected 'timestamp filename'";
+    }
+    entries.push_back(std::move(entry));
+    return {};
+  });
+}
+
+std::string read_associations(const fs::path& path, std::vector<FrameEntry>& frames,
+                              std::vector<std::string>& warnings) {
+  std::vector<int> line_numbers;
+  auto error = for_each_line(path, hal::kMaxListFileBytes, [&](const std::string& line, int line_number) -> std::string {
+    if (is_comment_or_blank(line)) return {};
     std::istringstream fields(line);
     FrameEntry frame;
-    if (!(fields >> frame.rgb_stamp_s >> frame.rgb_file >> frame.depth_stamp_s >> frame.depth_file)) {
+    if (!(fields >> frame.rgb_stamp_s >> frame.rgb_file >> frame.depth_stamp_s >> frame.depth_file) ||
+        !is_valid_stamp(frame.rgb_stamp_s) || !is_valid_stamp(frame.depth_stamp_s)) {
       return path.string() + ":" + std::to_string(line_number) +
              ": expected 'rgb_stamp rgb_file depth_stamp depth_file'";
     }
     frames.push_back(std::move(frame));
+    line_numbers.push_back(line_number);
+    return {};
+  });
+  if (!error.empty() || frames.empty()) return error;
+  // One frame per colour stamp, as associate.py keys its lists by stamp: the first line is
+  // replayed, each later one with the same stamp (a line pasted twice) dropped with a warning.
+  std::vector<std::size_t> order(frames.size());
+  for (std::size_t i = 0; i < order.size(); ++i) order[i] = i;
+  std::stable_sort(order.begin(), order.end(),
+                   [&](std::size_t a, std::size_t b) { return frames[a].rgb_stamp_s < frames[b].rgb_stamp_s; });
+  std::vector<bool> duplicate(frames.size(), false);
+  std::size_t duplicates = 0;
+  for (std::size_t k = 1, first = order[0]; k < order.size(); ++k) {
+    const std::size_t i = order[k];
+    if (frames[i].rgb_stamp_s != frames[first].rgb_stamp_s) {
+      first = i;
+      continue;
+    }
+    duplicate[i] = true;
+    if (++duplicates <= 3) {
+      warnings.push_back(path.string() + ":" + std::to_string(line_numbers[i]) + ": colour stamp already on line " +
+                         std::to_string(line_numbers[first]) + ", line dropped");
+    }
   }
+  if (duplicates > 3) {
+    warnings.push_back(path.string() + ": " + std::to_string(duplicates) + " lines repeating a colour stamp dropped in all");
+  }
+  std::size_t kept = 0;
+  for (std::size_t i = 0; i < frames.size(); ++i) {
+    if (duplicate[i]) continue;
+    if (kept != i) frames[kept] = std::move(frames[i]);
+    ++kept;
+  }
+  frames.resize(kept);
   return {};
 }
 
@@ -93,31 +140,29 @@ std::optional<std::string> tum_camera_named_in(const std::string& text) {
 }
 
 std::string ground_truth_header(const fs::path& path) {
-  std::ifstream in(path);
   std::string header;
-  std::string line;
-  for (int i = 0; i < 5 && std::getline(in, line); ++i) {
+  int lines = 0;
+  (void)for_each_line(path, hal::kMaxTrajectoryFileBytes, [&](const std::string& line, int) -> std::string {
+    if (++lines > 5) return "enough";
     if (!line.empty() && line[0] == '#') header += line + "\n";
-  }
+    return {};
+  });
   return header;
 }
 
 std::string read_can_log(const fs::path& path, std::vector<hal::CanFrame>& frames,
                          std::vector<std::string>& warnings) {
-  std::ifstream in(path);
-  if (!in) return "cannot open " + path.string();
-  std::string line;
-  int line_number = 0;
   int bad_lines = 0;
-  while (std::getline(in, line)) {
-    ++line_number;
-    if (is_comment_or_blank(line)) continue;
+  auto error = for_each_line(path, hal::kMaxCanLogBytes, [&](const std::string& line, int line_number) -> std::string {
+    if (is_comment_or_blank(line)) return {};
     if (auto frame = hal::parse_candump_line(line)) {
       frames.push_back(*frame);
     } else if (++bad_lines <= 3) {
       warnings.push_back(path.string() + ":" + std::to_string(line_number) + ": not a candump -l frame, skipped");
     }
-  }
+    return {};
+  });
+  if (!error.empty()) return error;
   if (bad_lines > 3) {
     warnings.push_back(path.string() + ": " + std::to_string(bad_lines) + " malformed lines skipped in all");
   }
@@ -158,10 +203,26 @@ std::string open_recording(const fs::path& root, Recording& recording) {
   std::error_code ec;
   if (!fs::is_directory(root, ec)) return root.string() + ": not a directory";
 
-  if (fs::exists(root / "groundtruth.txt")) recording.ground_truth = root / "groundtruth.txt";
+  // Which optional files are there; one that cannot be told (a symbolic-link loop) is an error.
+  std::string presence_error;
+  const auto present = [&](const char* name) { return hal::path_exists(root / name, presence_error); };
+  for (const char* name : {"groundtruth.txt", "calibration.yaml", "associations.txt", "ir.txt", "fisheye.txt", "can.log"}) {
+    if (!present(name) && !presence_error.empty()) return presence_error;
+  }
+
+  if (present("groundtruth.txt")) {
+    if (auto error = hal::check_regular_file(root / "groundtruth.txt", hal::kMaxTrajectoryFileBytes); !error.empty()) {
+      return error;
+    }
+    recording.ground_truth = root / "groundtruth.txt";
+  }
 
   // Calibration: the recording's own file first, then the TUM camera its name or ground truth names.
-  if (fs::exists(root / "calibration.yaml")) {
+  if (present("calibration.yaml")) {
+    // A calibration is under a kilobyte; the YAML parser would wait on a FIFO or read a device forever.
+    if (auto error = hal::check_regular_file(root / "calibration.yaml", std::size_t{1} << 20U); !error.empty()) {
+      return error;
+    }
     if (auto error = load_calibration_yaml(root / "calibration.yaml", recording.calibration); !error.empty()) {
       return error;
     }
@@ -177,8 +238,11 @@ std::string open_recording(const fs::path& root, Recording& recording) {
   }
 
   // Colour-depth pairs: associations.txt when present, otherwise nearest stamps within 0.02 s.
-  if (fs::exists(root / "associations.txt")) {
-    if (auto error = read_associations(root / "associations.txt", recording.frames); !error.empty()) return error;
+  if (present("associations.txt")) {
+    if (auto error = read_associations(root / "associations.txt", recording.frames, recording.warnings);
+        !error.empty()) {
+      return error;
+    }
   } else {
     std::vector<StampedFile> rgb;
     std::vector<StampedFile> depth;
@@ -197,7 +261,7 @@ std::string open_recording(const fs::path& root, Recording& recording) {
   std::stable_sort(recording.frames.begin(), recording.frames.end(),
                    [](const FrameEntry& a, const FrameEntry& b) { return a.rgb_stamp_s < b.rgb_stamp_s; });
 
-  if (fs::exists(root / "ir.txt")) {
+  if (present("ir.txt")) {
     std::vector<StampedFile> ir;
     if (auto error = read_stamped_list(root / "ir.txt", ir); !error.empty()) return error;
     std::vector<double> frame_stamps;
@@ -207,7 +271,7 @@ std::string open_recording(const fs::path& root, Recording& recording) {
       recording.frames[i].ir_file = ir[j].file;
     }
   }
-  if (fs::exists(root / "fisheye.txt")) {
+  if (present("fisheye.txt")) {
     std::vector<StampedFile> fisheye;
     if (auto error = read_stamped_list(root / "fisheye.txt", fisheye); !error.empty()) return error;
     if (!recording.calibration.fisheye) {
@@ -217,7 +281,7 @@ std::string open_recording(const fs::path& root, Recording& recording) {
       for (auto& entry : fisheye) recording.fisheye.push_back({entry.stamp_s, std::move(entry.file)});
     }
   }
-  if (fs::exists(root / "can.log")) {
+  if (present("can.log")) {
     if (auto error = read_can_log(root / "can.log", recording.can_frames, recording.warnings); !error.empty()) {
       return error;
     }

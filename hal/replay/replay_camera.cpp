@@ -1,24 +1,40 @@
 #include "rankslam/replay/replay_camera.hpp"
 
+#include "rankslam/hal/image_header.hpp"
+#include "rankslam/hal/regular_file.hpp"
+
 #include <opencv2/imgcodecs.hpp>
 
 #include <algorithm>
 #include <cmath>
+#include <exception>
 #include <initializer_list>
-#include <fstream>
 
 namespace rankslam::replay {
 namespace {
 
-// Reads a whole file into `buffer`, reusing its capacity.
-bool read_file(const std::filesystem::path& path, std::vector<unsigned char>& buffer) {
-  std::ifstream in(path, std::ios::binary | std::ios::ate);
-  if (!in) return false;
-  const auto size = in.tellg();
-  if (size <= 0) return false;
-  buffer.resize(static_cast<std::size_t>(size));
-  in.seekg(0);
-  return static_cast<bool>(in.read(reinterpret_cast<char*>(buffer.data()), size));
+// Larger is not a camera frame: 64 MiB holds an uncompressed 16-bit three-channel 4K image (50 MB).
+constexpr std::size_t kMaxImageFileBytes = std::size_t{64} << 20U;
+
+// A decoder may turn an image by its EXIF orientation, so either way round is the calibration's size.
+bool has_size(const hal::ImageHeader& header, const hal::CameraCalibration& camera) {
+  return (header.width == camera.width && header.height == camera.height) ||
+         (header.width == camera.height && header.height == camera.width);
+}
+
+// Reads an image file into `buffer`, reusing its capacity, and checks from its header, before
+// anything is decoded, that it has the calibration's size. Empty on success, else what is wrong.
+std::string read_image(const std::filesystem::path& path, const hal::CameraCalibration& camera,
+                       std::vector<unsigned char>& buffer, hal::ImageHeader& header) {
+  if (auto error = hal::read_regular_file(path, kMaxImageFileBytes, buffer); !error.empty()) return error;
+  const auto read = hal::read_image_header(buffer);
+  if (!read) return path.string() + ": not a decodable image";
+  header = *read;
+  if (!has_size(header, camera)) {
+    return path.string() + ": " + std::to_string(header.width) + "x" + std::to_string(header.height) +
+           " but the calibration says " + std::to_string(camera.width) + "x" + std::to_string(camera.height);
+  }
+  return {};
 }
 
 // True when the buffer starts like an image format the replay accepts (PNG, JPEG, PPM/PGM,
@@ -57,7 +73,10 @@ std::string ReplayDepthCamera::open() {
   const auto total = static_cast<std::uint32_t>(recording_.frames.size());
   frame_count_ = options_.max_frames > 0 ? std::min(options_.max_frames, total) : total;
   if (frame_count_ == 0) return recording_.root.string() + ": no frames to replay";
-  if (options_.rate < 0.0 || !std::isfinite(options_.rate)) return "replay rate must be 0 (as fast as possible) or positive";
+  if (!(options_.rate == 0.0 || (options_.rate >= kMinReplayRate && options_.rate <= kMaxReplayRate))) {
+    return "replay rate must be 0 (as fast as possible) or between " + std::to_string(kMinReplayRate) + " and " +
+           std::to_string(kMaxReplayRate);
+  }
   const auto& camera = recording_.calibration.rgb;
   for (auto& slot : slots_) {
     // Allocate every image once so decoding reuses the memory.
@@ -108,7 +127,10 @@ std::string ReplayDepthCamera::decode_into(std::uint32_t index, Slot& slot) {
   const auto rgb_path = recording_.root / entry.rgb_file;
   const auto depth_path = recording_.root / entry.depth_file;
 
-  if (!read_file(rgb_path, slot.file_buffer)) return rgb_path.string() + ": missing or unreadable, " + frame_name + " skipped";
+  hal::ImageHeader header;
+  if (auto error = read_image(rgb_path, camera, slot.file_buffer, header); !error.empty()) {
+    return error + ", " + frame_name + " skipped";
+  }
   if (!decode(slot.file_buffer, cv::IMREAD_COLOR, slot.frame.rgb)) {
     return rgb_path.string() + ": not a decodable image, " + frame_name + " skipped";
   }
@@ -117,22 +139,27 @@ std::string ReplayDepthCamera::decode_into(std::uint32_t index, Slot& slot) {
            " but the calibration says " + std::to_string(camera.width) + "x" + std::to_string(camera.height) + ", " +
            frame_name + " skipped";
   }
-  if (!read_file(depth_path, slot.file_buffer)) {
-    return depth_path.string() + ": missing or unreadable, " + frame_name + " skipped";
+  constexpr const char* kDepthLayout = "depth must be 16-bit single channel of the colour image's size, ";
+  if (auto error = read_image(depth_path, camera, slot.file_buffer, header); !error.empty()) {
+    return error + ", " + frame_name + " skipped";
+  }
+  // IMREAD_ANYDEPTH would quietly turn a colour image into grey, so the layout is checked first.
+  if (header.channels != 1 || header.bit_depth != 16) {
+    return depth_path.string() + ": " + std::to_string(header.channels) + " channels of " +
+           std::to_string(header.bit_depth) + " bits, but " + kDepthLayout + frame_name + " skipped";
   }
   if (!decode(slot.file_buffer, cv::IMREAD_ANYDEPTH, slot.frame.depth)) {
     return depth_path.string() + ": not a decodable image, " + frame_name + " skipped";
   }
   if (slot.frame.depth.type() != CV_16UC1 || slot.frame.depth.size() != slot.frame.rgb.size()) {
-    return depth_path.string() + ": depth must be 16-bit single channel of the colour image's size, " + frame_name +
-           " skipped";
+    return depth_path.string() + ": " + kDepthLayout + frame_name + " skipped";
   }
   slot.frame.ir.release();
   if (options_.load_ir && !entry.ir_file.empty()) {
     const auto ir_path = recording_.root / entry.ir_file;
     // A bad IR image costs the IR stream for this frame, not the frame.
-    if (!read_file(ir_path, slot.file_buffer) || !decode(slot.file_buffer, cv::IMREAD_GRAYSCALE, slot.frame.ir) ||
-        slot.frame.ir.size() != slot.frame.rgb.size()) {
+    if (!read_image(ir_path, camera, slot.file_buffer, header).empty() ||
+        !decode(slot.file_buffer, cv::IMREAD_GRAYSCALE, slot.frame.ir) || slot.frame.ir.size() != slot.frame.rgb.size()) {
       slot.frame.ir.release();
       std::lock_guard lock(mutex_);
       warnings_.push_back(ir_path.string() + ": missing or undecodable IR image, " + frame_name + " has no IR");
@@ -145,9 +172,31 @@ std::string ReplayDepthCamera::decode_into(std::uint32_t index, Slot& slot) {
 }
 
 void ReplayDepthCamera::reader_loop() {
+  std::uint32_t index = 0;
+  // Nothing may escape the thread (std::terminate would end the process): what the per-frame
+  // handling cannot absorb ends the replay here, the frames not read counted as skipped.
+  try {
+    read_frames(index);
+  } catch (...) {
+    std::lock_guard lock(mutex_);
+    counters_.corrupt += frame_count_ - std::min(index, frame_count_);
+    try {
+      warnings_.push_back("replay reader failed at frame " + std::to_string(index) + "; the " +
+                          std::to_string(frame_count_ - std::min(index, frame_count_)) +
+                          " frames from there on are skipped");
+    } catch (...) {
+      // Out of memory for the warning as well: the count above still tells.
+    }
+  }
+  std::lock_guard lock(mutex_);
+  reader_done_ = true;
+  changed_.notify_all();
+}
+
+void ReplayDepthCamera::read_frames(std::uint32_t& index) {
   const auto start = std::chrono::steady_clock::now();
   const double first_stamp_s = recording_.frames.front().rgb_stamp_s;
-  for (std::uint32_t index = 0; index < frame_count_; ++index) {
+  for (; index < frame_count_; ++index) {
     std::size_t slot_index = kPoolSlots;
     {
       std::unique_lock lock(mutex_);
@@ -176,9 +225,18 @@ void ReplayDepthCamera::reader_loop() {
       slot_free_[slot_index] = false;
     }
     Slot& slot = slots_[slot_index];
-    const std::string error = decode_into(index, slot);
+    std::string error;
+    try {
+      error = decode_into(index, slot);
+    } catch (const std::exception& exception) {
+      error = "frame " + std::to_string(index) + " (" + recording_.frames[index].rgb_file +
+              "): cannot be read (" + exception.what() + "), skipped";
+    }
     if (options_.rate > 0.0) {
-      const double offset_s = (recording_.frames[index].rgb_stamp_s - first_stamp_s) / options_.rate;
+      // Capped so that a huge stamp gap (or a tiny rate) cannot overflow the clock's ticks.
+      constexpr double kMaxPacingWait_s = 365.0 * 24.0 * 3600.0;
+      const double offset_s =
+          std::min((recording_.frames[index].rgb_stamp_s - first_stamp_s) / options_.rate, kMaxPacingWait_s);
       const auto due = start + std::chrono::duration_cast<std::chrono::steady_clock::duration>(
                                    std::chrono::duration<double>(offset_s));
       std::unique_lock lock(mutex_);
@@ -187,17 +245,14 @@ void ReplayDepthCamera::reader_loop() {
     std::lock_guard lock(mutex_);
     if (!error.empty()) {
       ++counters_.corrupt;
-      warnings_.push_back(error);
       slot_free_[slot_index] = true;
+      warnings_.push_back(error);
       continue;
     }
     ready_[(ready_head_ + ready_count_) % kPoolSlots] = slot_index;
     ++ready_count_;
     changed_.notify_all();
   }
-  std::lock_guard lock(mutex_);
-  reader_done_ = true;
-  changed_.notify_all();
 }
 
 hal::ReadStatus ReplayDepthCamera::read(hal::RgbdFrame& frame, std::chrono::milliseconds wait) {

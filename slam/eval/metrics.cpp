@@ -170,6 +170,14 @@ Result<AteResult> compute_ate(const Trajectory& ground_truth, const Trajectory& 
         " s of a ground-truth stamp (estimate " + stamp_range_text(estimate) + ", ground truth " +
         stamp_range_text(ground_truth) + ")");
   }
+  // Fewer points leave the rigid alignment undetermined, and its error an arbitrary zero.
+  constexpr std::size_t kMinMatches = 3;
+  if (n < kMinMatches) {
+    return Result<AteResult>::failure("an ATE needs at least " + std::to_string(kMinMatches) +
+                                      " associated poses to align the estimate to the ground truth, found " +
+                                      std::to_string(n) + " (estimate " + std::to_string(estimate.size()) +
+                                      " poses, ground truth " + std::to_string(ground_truth.size()) + ")");
+  }
 
   Eigen::Matrix3Xd estimate_xyz(3, static_cast<Eigen::Index>(n));
   Eigen::Matrix3Xd truth_xyz(3, static_cast<Eigen::Index>(n));

@@ -11,6 +11,7 @@
 #include <system_error>
 
 #include "rankslam/hal/atomic_file.hpp"
+#include "rankslam/hal/regular_file.hpp"
 
 namespace rankslam::eval {
 namespace {
@@ -117,23 +118,9 @@ Result<Trajectory> parse_tum_trajectory(std::string_view text, std::string_view 
 }
 
 Result<Trajectory> read_tum_trajectory(const std::filesystem::path& path) {
-  struct FileCloser {
-    void operator()(std::FILE* file) const { std::fclose(file); }
-  };
-  const std::unique_ptr<std::FILE, FileCloser> file(std::fopen(path.c_str(), "rb"));
-  if (!file) {
-    return Result<Trajectory>::failure("cannot open " + path.string() + ": " +
-                                       std::strerror(errno));
-  }
   std::string text;
-  std::array<char, 1 << 16> buffer{};
-  std::size_t n = 0;
-  while ((n = std::fread(buffer.data(), 1, buffer.size(), file.get())) > 0) {
-    text.append(buffer.data(), n);
-  }
-  if (std::ferror(file.get()) != 0) {
-    return Result<Trajectory>::failure("cannot read " + path.string() + ": " +
-                                       std::strerror(errno));
+  if (auto error = hal::read_regular_file(path, hal::kMaxTrajectoryFileBytes, text); !error.empty()) {
+    return Result<Trajectory>::failure(error);
   }
   return parse_tum_trajectory(text, path.string());
 }

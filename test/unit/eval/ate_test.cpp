@@ -192,6 +192,18 @@ TEST(Ate, FailsWithAReason) {
   EXPECT_FALSE(compute_ate(truth, truth, bad).ok());
 }
 
+TEST(Ate, TooFewAssociatedPosesToAlignAreNoAte) {
+  const Trajectory truth = helix(0.0, 2.0, 100.0);
+  for (const std::size_t poses : {1U, 2U}) {
+    const Trajectory estimate(truth.begin(), truth.begin() + static_cast<std::ptrdiff_t>(poses));
+    const Result<AteResult> ate = compute_ate(truth, estimate);
+    ASSERT_FALSE(ate.ok()) << poses;
+    EXPECT_NE(ate.error().find("at least 3 associated poses"), std::string::npos) << ate.error();
+    EXPECT_NE(ate.error().find("found " + std::to_string(poses)), std::string::npos) << ate.error();
+  }
+  EXPECT_TRUE(compute_ate(truth, Trajectory(truth.begin(), truth.begin() + 3)).ok());
+}
+
 TEST(Ate, TumFreiburg1XyzRgbdslamFixture) {
   const std::filesystem::path dir = test::shared_trajectories_dir();
   if (!std::filesystem::exists(dir / "freiburg1_xyz-groundtruth.txt") ||

@@ -2,6 +2,9 @@
 
 #include <gtest/gtest.h>
 
+#include <cstdint>
+#include <limits>
+
 namespace rankslam::hal {
 namespace {
 
@@ -34,6 +37,21 @@ TEST(Candump, RejectsMalformedLines) {
                            "(x.0) can0 101#00", "(1.0) can0 101#001122334455667788", "(1.0) can0 101#R"}) {
     EXPECT_FALSE(parse_candump_line(line).has_value()) << line;
   }
+}
+
+TEST(Candump, StampsMustFitAnInt64OfNanoseconds) {
+  // The largest stamp whose nanoseconds fit, and the smallest beyond it.
+  const auto largest = parse_candump_line("(9223372036.854775807) can0 101#00");
+  ASSERT_TRUE(largest.has_value());
+  EXPECT_EQ(largest->stamp_ns, std::numeric_limits<std::int64_t>::max());
+  for (const char* line : {"(9223372036.854775808) can0 101#00", "(99999999999.000000) can0 101#00",
+                           "(9223372037.000000) can0 101#00", "(-1.000000) can0 101#00", "(1.-5) can0 101#00",
+                           "(.5) can0 101#00"}) {
+    EXPECT_FALSE(parse_candump_line(line).has_value()) << line;
+  }
+  const auto zero = parse_candump_line("(0.000001) can0 101#00");
+  ASSERT_TRUE(zero.has_value());
+  EXPECT_EQ(zero->stamp_ns, 1000);
 }
 
 TEST(Candump, FormatRoundTrips) {

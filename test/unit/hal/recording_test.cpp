@@ -4,6 +4,8 @@
 
 #include <gtest/gtest.h>
 
+#include <sys/stat.h>
+
 #include <fstream>
 
 namespace rankslam::replay {
@@ -112,6 +114,54 @@ TEST(Recording, ReadsCanLogAndIrStream) {
 TEST(Recording, MissingDirectoryIsAnError) {
   Recording recording;
   EXPECT_NE(open_recording("/nonexistent/recording", recording).find("/nonexistent/recording"), std::string::npos);
+}
+
+TEST(Recording, ARepeatedColourStampIsReplayedOnceAndNamed) {
+  const fs::path root = test::write_small_recording("rankslam_rec_duplicate", 4, true, true);
+  std::string text;
+  {
+    std::ifstream in(root / "associations.txt");
+    std::string line;
+    for (int i = 0; std::getline(in, line); ++i) text += line + "\n" + (i == 1 ? line + "\n" : "");
+  }
+  std::ofstream(root / "associations.txt", std::ios::trunc) << text;
+  Recording recording;
+  ASSERT_EQ(open_recording(root, recording), "");
+  EXPECT_EQ(recording.frames.size(), 4U);
+  ASSERT_EQ(recording.warnings.size(), 1U);
+  EXPECT_EQ(recording.warnings[0], (root / "associations.txt").string() + ":3: colour stamp already on line 2, line dropped");
+}
+
+TEST(Recording, ListFilesThatAreNotRegularFilesAreRefusedByName) {
+  for (const char* name : {"associations.txt", "calibration.yaml", "groundtruth.txt", "can.log", "ir.txt", "fisheye.txt"}) {
+    const fs::path root = test::write_small_recording("rankslam_rec_fifo", 3, true, true);
+    fs::remove(root / name);
+    ASSERT_EQ(::mkfifo((root / name).c_str(), 0600), 0);
+    Recording recording;
+    EXPECT_EQ(open_recording(root, recording), (root / name).string() + ": a FIFO, not a regular file") << name;
+  }
+  const fs::path root = test::write_small_recording("rankslam_rec_fifo_rgb", 3, false, true);
+  fs::remove(root / "rgb.txt");
+  fs::create_directory(root / "rgb.txt");
+  Recording recording;
+  EXPECT_EQ(open_recording(root, recording), (root / "rgb.txt").string() + ": a directory, not a regular file");
+}
+
+TEST(Recording, ASymlinkLoopIsAnErrorNamingTheFile) {
+  const fs::path root = test::write_small_recording("rankslam_rec_loop", 3, true, true);
+  fs::remove(root / "associations.txt");
+  fs::create_symlink("associations.txt", root / "associations.txt");
+  Recording recording;
+  const std::string error = open_recording(root, recording);
+  EXPECT_EQ(error.rfind((root / "associations.txt").string() + ": ", 0), 0U) << error;
+}
+
+TEST(Recording, StampsBeyondTheNanosecondClockAreMalformedLines) {
+  const fs::path root = test::write_small_recording("rankslam_rec_stamp", 3, true, true);
+  std::ofstream(root / "associations.txt", std::ios::app) << "1e300 rgb/a.png 1e300 depth/a.png\n";
+  Recording recording;
+  EXPECT_EQ(open_recording(root, recording), (root / "associations.txt").string() +
+                                                 ":4: expected 'rgb_stamp rgb_file depth_stamp depth_file'");
 }
 
 }  // namespace

@@ -4,7 +4,10 @@
 
 #include <gtest/gtest.h>
 
+#include <sys/stat.h>
+
 #include <fstream>
+#include <limits>
 #include <thread>
 
 namespace rankslam::replay {
@@ -126,6 +129,71 @@ TEST(ReplayCamera, MaxFramesAndPacedReplay) {
   const auto counters = camera.counters();
   EXPECT_EQ(frames.size() + counters.dropped, 6U);
   EXPECT_EQ(counters.corrupt, 0U);
+}
+
+TEST(ReplayCamera, ImagesThatAreNoRegularFilesOrTooLargeAreSkippedCountedAndNamed) {
+  const fs::path root = test::write_small_recording("rankslam_replay_irregular", 6, true, true);
+  Recording recording;
+  ASSERT_EQ(open_recording(root, recording), "");
+  recording.frames[1].rgb_file = "rgb";
+  ASSERT_EQ(::mkfifo((root / "rgb" / "fifo.png").c_str(), 0600), 0);
+  recording.frames[2].rgb_file = "rgb/fifo.png";
+  std::ofstream(root / "depth" / "sparse.png") << "x";
+  fs::resize_file(root / "depth" / "sparse.png", std::uintmax_t{20} << 30U);
+  recording.frames[3].depth_file = "depth/sparse.png";
+  ReplayDepthCamera camera(recording, {});
+  ASSERT_EQ(camera.open(), "");
+  const auto frames = replay_all(camera);
+  fs::remove(root / "depth" / "sparse.png");
+  ASSERT_EQ(frames.size(), 3U);
+  EXPECT_EQ(camera.counters().corrupt, 3U);
+  const auto warnings = camera.take_warnings();
+  ASSERT_EQ(warnings.size(), 3U);
+  EXPECT_EQ(warnings[0], (root / "rgb").string() + ": a directory, not a regular file, frame 1 (rgb) skipped");
+  EXPECT_EQ(warnings[1], (root / "rgb" / "fifo.png").string() + ": a FIFO, not a regular file, frame 2 (rgb/fifo.png) skipped");
+  EXPECT_NE(warnings[2].find("sparse.png: 21474836480 bytes"), std::string::npos) << warnings[2];
+}
+
+TEST(ReplayCamera, SizeAndLayoutAreCheckedFromTheHeaderBeforeDecoding) {
+  const fs::path root = test::write_small_recording("rankslam_replay_header", 4, true, true);
+  Recording recording;
+  ASSERT_EQ(open_recording(root, recording), "");
+  // A colour PNG whose header declares 30000 x 30000 pixels (the decoder would allocate 2.7 GB).
+  std::vector<unsigned char> png;
+  ASSERT_TRUE(cv::imencode(".png", cv::Mat(48, 64, CV_8UC3, cv::Scalar(1, 2, 3)), png));
+  const unsigned char size[] = {0x00, 0x00, 0x75, 0x30};
+  std::copy(std::begin(size), std::end(size), png.begin() + 16);
+  std::copy(std::begin(size), std::end(size), png.begin() + 20);
+  std::ofstream(root / recording.frames[1].rgb_file, std::ios::binary | std::ios::trunc)
+      .write(reinterpret_cast<const char*>(png.data()), static_cast<std::streamsize>(png.size()));
+  // A 16-bit depth image of three channels, which IMREAD_ANYDEPTH would turn into one.
+  cv::imwrite((root / recording.frames[2].depth_file).string(), cv::Mat(48, 64, CV_16UC3, cv::Scalar(5000, 5000, 5000)));
+  ReplayDepthCamera camera(recording, {});
+  ASSERT_EQ(camera.open(), "");
+  EXPECT_EQ(replay_all(camera).size(), 2U);
+  EXPECT_EQ(camera.counters().corrupt, 2U);
+  const auto warnings = camera.take_warnings();
+  ASSERT_EQ(warnings.size(), 2U);
+  EXPECT_NE(warnings[0].find(": 30000x30000 but the calibration says 64x48, frame 1"), std::string::npos) << warnings[0];
+  EXPECT_NE(warnings[1].find(recording.frames[2].depth_file + ": 3 channels of 16 bits"), std::string::npos) << warnings[1];
+}
+
+TEST(ReplayCamera, RatesWhosePacingWouldOverflowAreRefused) {
+  const fs::path root = test::write_small_recording("rankslam_replay_rates", 2, true, true);
+  Recording recording;
+  ASSERT_EQ(open_recording(root, recording), "");
+  for (const double rate : {1e-300, 1e-4, 1e4, -1.0, std::numeric_limits<double>::infinity()}) {
+    ReplayOptions options;
+    options.rate = rate;
+    ReplayDepthCamera camera(recording, options);
+    EXPECT_NE(camera.open().find("replay rate must be 0"), std::string::npos) << rate;
+  }
+  for (const double rate : {0.0, kMinReplayRate, kMaxReplayRate}) {
+    ReplayOptions options;
+    options.rate = rate;
+    ReplayDepthCamera camera(recording, options);
+    EXPECT_EQ(camera.open(), "") << rate;
+  }
 }
 
 }  // namespace

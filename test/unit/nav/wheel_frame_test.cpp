@@ -2,6 +2,8 @@
 
 #include <gtest/gtest.h>
 
+#include <vector>
+
 namespace rankslam::nav {
 namespace {
 
@@ -46,6 +48,26 @@ TEST(WheelFrame, RejectsWrongLength) {
   hal::CanFrame frame;
   frame.length = 7;
   EXPECT_FALSE(decode_wheel_ticks(frame).has_value());
+}
+
+TEST(WheelFrame, MalformedWheelFramesAreCountedAndTheFirstNamed) {
+  std::vector<hal::CanFrame> frames;
+  for (int i = 0; i < 6; ++i) frames.push_back(encode_wheel_ticks({}, 0x101, 1'000'000'000LL + i * 10'000'000LL));
+  frames[1].length = 2;
+  frames[2].id = 0x102;  // another frame, any length
+  frames[2].length = 1;
+  frames[3].extended = true;  // an extended identifier is not the wheel frame
+  frames[3].length = 3;
+  frames[4].length = 0;
+  EXPECT_EQ(describe_malformed_wheel_frames(frames, 0x101),
+            "2 wheel frames (identifier 0x101) are not 8 bytes long and are not used: 1.010000 s with 2 bytes, "
+            "1.040000 s with 0 bytes");
+  frames[1].length = kWheelTicksLength;
+  frames[4].length = kWheelTicksLength;
+  EXPECT_EQ(describe_malformed_wheel_frames(frames, 0x101), "");
+  for (auto& frame : frames) frame.length = 5;
+  EXPECT_NE(describe_malformed_wheel_frames(frames, 0x101).find("4 wheel frames"), std::string::npos);
+  EXPECT_NE(describe_malformed_wheel_frames(frames, 0x101).find("1.040000 s with 5 bytes, ..."), std::string::npos);
 }
 
 }  // namespace

@@ -4,6 +4,8 @@
 
 #include <cstdint>
 #include <optional>
+#include <span>
+#include <string>
 
 namespace rankslam::nav {
 
@@ -30,6 +32,11 @@ inline constexpr std::uint8_t kWheelTicksLength = 8;
 
 /// Decodes a `WheelTicks` frame; nullopt when the length is wrong.
 [[nodiscard]] std::optional<WheelTicks> decode_wheel_ticks(const hal::CanFrame& frame);
+
+/// Frames of `frames` with the wheel identifier `can_id` (standard) whose length is not
+/// kWheelTicksLength: they cannot be decoded, and the odometry counts them as malformed. An empty
+/// string when there are none, otherwise their number and the first few (stamp and length).
+[[nodiscard]] std::string describe_malformed_wheel_frames(std::span<const hal::CanFrame> frames, std::uint32_t can_id);
 
 /// Signed tick difference `current - previous` across a 24-bit wrap (|delta| < 2^23).
 [[nodiscard]] constexpr std::int32_t wheel_tick_delta(std::uint32_t previous, std::uint32_t current) {

@@ -44,8 +44,13 @@ struct Recording {
 /// (the TUM benchmark's associate.py default).
 inline constexpr double kMaxAssociationGap_s = hal::kDefaultMaxDifference_s;
 
+/// Largest stamp magnitude a recording may hold, s: its nanoseconds fit an int64 (year 2261).
+inline constexpr double kMaxStamp_s = 9.2e9;
+
 /// Indexes a recording directory (see README, "Recording format"). Returns an error message
-/// naming the file and line on failure, an empty string on success.
+/// naming the file and line on failure, an empty string on success. Every file is read only when
+/// it is a regular file within its size bound (hal/regular_file.hpp), so a FIFO, a device or a
+/// runaway file is refused, never waited on or read without end.
 [[nodiscard]] std::string open_recording(const std::filesystem::path& root, Recording& recording);
 
 /// The TUM benchmark's published calibration for camera "freiburg1", "freiburg2" or "freiburg3";

@@ -14,11 +14,15 @@
 
 namespace rankslam::replay {
 
+/// Slowest and fastest paced replay: a thousandth of the recorded rate to a thousand times it.
+inline constexpr double kMinReplayRate = 1e-3;
+inline constexpr double kMaxReplayRate = 1e3;
+
 /// How the replay camera paces a recording.
 struct ReplayOptions {
   /// 0 = as fast as the consumer takes frames (no frame is ever dropped);
-  /// otherwise play at this multiple of the recorded rate, dropping the oldest decoded frame
-  /// when the consumer falls behind, as a live sensor would.
+  /// otherwise play at this multiple of the recorded rate (kMinReplayRate .. kMaxReplayRate),
+  /// dropping the oldest decoded frame when the consumer falls behind, as a live sensor would.
   double rate = 0.0;
   /// Replay at most this many frames (0 = all).
   std::uint32_t max_frames = 0;
@@ -40,7 +44,8 @@ struct ReplayCounters {
 
 /// Plays a recording through the DepthCamera interface. Images are decoded on a reader thread
 /// into a fixed pool of slots allocated at open(); a missing or corrupt image skips the frame,
-/// counts it and names the file in a warning, never stops the replay.
+/// counts it and names the file in a warning, never stops the replay. Image files are read only
+/// when they are regular files of at most 64 MiB whose header gives the calibration's size.
 class ReplayDepthCamera final : public hal::DepthCamera {
  public:
   /// Slots in the decode pool: one being read by the consumer, the rest decoded ahead.
@@ -71,6 +76,8 @@ class ReplayDepthCamera final : public hal::DepthCamera {
   };
 
   void reader_loop();
+  /// The reader thread's work, from frame `index` on; `index` tells how far it got.
+  void read_frames(std::uint32_t& index);
   /// Decodes frame `index` into `slot`; an empty string on success, else what went wrong.
   std::string decode_into(std::uint32_t index, Slot& slot);
 
