@@ -7,6 +7,7 @@
 #include <algorithm>
 #include <cctype>
 #include <cmath>
+#include <cstdio>
 #include <sstream>
 
 namespace rankslam::replay {
@@ -150,6 +151,23 @@ std::string ground_truth_header(const fs::path& path) {
   return header;
 }
 
+// A warning when `stamps_s` (in file order) step backwards: the replay plays them in stamp order,
+// which is not the order the file gives when a clock stepped back.
+void warn_of_backward_stamps(const std::vector<double>& stamps_s, const fs::path& path, std::vector<std::string>& warnings) {
+  std::size_t steps = 0;
+  double largest_s = 0.0;
+  for (std::size_t i = 1; i < stamps_s.size(); ++i) {
+    if (stamps_s[i] >= stamps_s[i - 1]) continue;
+    ++steps;
+    largest_s = std::max(largest_s, stamps_s[i - 1] - stamps_s[i]);
+  }
+  if (steps == 0) return;
+  char largest[32];
+  std::snprintf(largest, sizeof largest, "%.6f", largest_s);
+  warnings.push_back(path.string() + ": stamps go backwards " + std::to_string(steps) + " times (by up to " + largest +
+                     " s); replayed in stamp order");
+}
+
 std::string read_can_log(const fs::path& path, std::vector<hal::CanFrame>& frames,
                          std::vector<std::string>& warnings) {
   int bad_lines = 0;
@@ -166,6 +184,10 @@ std::string read_can_log(const fs::path& path, std::vector<hal::CanFrame>& frame
   if (bad_lines > 3) {
     warnings.push_back(path.string() + ": " + std::to_string(bad_lines) + " malformed lines skipped in all");
   }
+  std::vector<double> stamps_s;
+  stamps_s.reserve(frames.size());
+  for (const hal::CanFrame& frame : frames) stamps_s.push_back(static_cast<double>(frame.stamp_ns) * 1e-9);
+  warn_of_backward_stamps(stamps_s, path, warnings);
   std::stable_sort(frames.begin(), frames.end(),
                    [](const hal::CanFrame& a, const hal::CanFrame& b) { return a.stamp_ns < b.stamp_ns; });
   return {};
@@ -258,6 +280,12 @@ std::string open_recording(const fs::path& root, Recording& recording) {
     }
   }
   if (recording.frames.empty()) return root.string() + ": no associated colour and depth images";
+  if (fs::exists(root / "associations.txt")) {
+    std::vector<double> stamps_s;
+    stamps_s.reserve(recording.frames.size());
+    for (const FrameEntry& frame : recording.frames) stamps_s.push_back(frame.rgb_stamp_s);
+    warn_of_backward_stamps(stamps_s, root / "associations.txt", recording.warnings);
+  }
   std::stable_sort(recording.frames.begin(), recording.frames.end(),
                    [](const FrameEntry& a, const FrameEntry& b) { return a.rgb_stamp_s < b.rgb_stamp_s; });
 

@@ -46,6 +46,10 @@ void write_status_and_wheels(JsonWriter& json, const StatusCounts& counts, const
   json.integer("wheel_frames_integrated", static_cast<long long>(odometry.frames_integrated));
   json.integer("wheel_frames_missing", static_cast<long long>(odometry.frames_missing));
   json.integer("wheel_frames_malformed", static_cast<long long>(odometry.malformed));
+  json.integer("wheel_timestamp_jumps",
+               static_cast<long long>(odometry.timestamp_jumps_backward + odometry.timestamp_jumps_forward));
+  json.integer("wheel_frames_dropped",
+               static_cast<long long>(odometry.duplicates + odometry.out_of_order + odometry.implausible));
   json.integer("wheel_vision_disagreements", counts.disagreements);
   json.integer("wheel_overruled_frames", counts.wheels_trusted);
 }
