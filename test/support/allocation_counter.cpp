@@ -74,8 +74,14 @@ void operator delete(void* p, std::size_t, std::align_val_t) noexcept { std::fre
 void operator delete[](void* p, std::size_t, std::align_val_t) noexcept { std::free(p); }
 
 // glibc lets a program replace malloc; forwarding to its __libc_* entry points keeps one heap.
-// Sanitizers interpose malloc themselves, so there only operator new is counted.
-#if defined(__GLIBC__) && !defined(__SANITIZE_ADDRESS__) && !defined(__SANITIZE_THREAD__)
+// Sanitizers interpose malloc themselves, so there only operator new is counted (GCC says so with
+// __SANITIZE_*__, clang with __has_feature).
+#if defined(__has_feature)
+#if __has_feature(address_sanitizer) || __has_feature(thread_sanitizer)
+#define RANKSLAM_SANITIZED 1
+#endif
+#endif
+#if defined(__GLIBC__) && !defined(__SANITIZE_ADDRESS__) && !defined(__SANITIZE_THREAD__) && !defined(RANKSLAM_SANITIZED)
 #define RANKSLAM_COUNT_MALLOC 1
 extern "C" {
 void* __libc_malloc(std::size_t size);
