@@ -11,6 +11,7 @@ build_packages=(
 test_packages=(
   libgtest-dev libgmock-dev libbenchmark-dev libopencv-contrib-dev libpcl-dev
   qemu-system-x86 busybox-static can-utils iproute2
+  clang-14 libclang-rt-14-dev
 )
 
 packages=("${build_packages[@]}")
