@@ -28,10 +28,12 @@ std::optional<CanFrame> parse_candump_line(std::string_view line) {
   const auto sec_text = line.substr(1, dot - 1);
   const auto frac_text = line.substr(dot + 1, close - dot - 1);
   if (frac_text.empty() || frac_text.size() > 9) return std::nullopt;
-  if (std::from_chars(sec_text.data(), sec_text.data() + sec_text.size(), seconds).ec != std::errc{} ||
-      std::from_chars(frac_text.data(), frac_text.data() + frac_text.size(), fraction).ec != std::errc{}) {
-    return std::nullopt;
-  }
+  // Each number must be the whole field: "(12x.5)" is no stamp.
+  const auto parse_all = [](std::string_view text, std::int64_t& value) {
+    const auto [end, ec] = std::from_chars(text.data(), text.data() + text.size(), value);
+    return ec == std::errc{} && end == text.data() + text.size();
+  };
+  if (!parse_all(sec_text, seconds) || !parse_all(frac_text, fraction)) return std::nullopt;
   for (std::size_t i = frac_text.size(); i < 9; ++i) fraction *= 10;
   // candump stamps are never negative; a stamp whose nanoseconds overflow an int64 is no stamp.
   if (sec_text.empty() || sec_text.front() == '-' || fraction < 0 ||
@@ -60,6 +62,8 @@ std::optional<CanFrame> parse_candump_line(std::string_view line) {
     if (!digit) return std::nullopt;
     frame.id = (frame.id << 4U) | *digit;
   }
+  // Three hex digits reach 0xFFF and eight 0xFFFFFFFF: beyond the 11 and 29 bits of a CAN identifier.
+  if (frame.id > (frame.extended ? 0x1FFFFFFFU : 0x7FFU)) return std::nullopt;
   const auto data = rest.substr(hash + 1);
   if (data.size() % 2 != 0 || data.size() > 16) return std::nullopt;
   frame.length = static_cast<std::uint8_t>(data.size() / 2);

@@ -54,6 +54,18 @@ TEST(Candump, StampsMustFitAnInt64OfNanoseconds) {
   EXPECT_EQ(zero->stamp_ns, 1000);
 }
 
+// Found by fuzz_candump: a stamp with trailing bytes inside its field, and identifiers beyond
+// 11 or 29 bits, were accepted.
+TEST(Candump, StampsAndIdentifiersMustBeWholeAndInRange) {
+  for (const char* line : {"(17x.5) can0 101#00", "(17.5x) can0 101#00", "(1.0) can0 800#00", "(1.0) can0 FFF#00",
+                           "(1.0) can0 20000000#00", "(1.0) can0 31462578#DEADBE"}) {
+    EXPECT_FALSE(parse_candump_line(line).has_value()) << line;
+  }
+  for (const char* line : {"(1.0) can0 7FF#00", "(1.0) can0 1FFFFFFF#00"}) {
+    EXPECT_TRUE(parse_candump_line(line).has_value()) << line;
+  }
+}
+
 TEST(Candump, FormatRoundTrips) {
   CanFrame frame;
   frame.stamp_ns = 1700000001'250000000LL;
