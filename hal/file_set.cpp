@@ -265,7 +265,9 @@ void FileSet::abandon() {
 std::string prepare_output_directory(const std::filesystem::path& dir) {
   std::error_code ec;
   fs::create_directories(dir, ec);
-  if (!fs::is_directory(dir)) {
+  // The error_code overload: a symbolic-link loop must be this message, not an exception.
+  if (std::error_code status_ec; !fs::is_directory(dir, status_ec)) {
+    if (!ec) ec = status_ec;
     return "cannot create output directory " + dir.string() + ": " + (ec ? ec.message() : "not a directory");
   }
   const std::string published = read_link(dir / kLatest);
