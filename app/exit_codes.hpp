@@ -9,7 +9,6 @@ enum ExitCode : int {
   kExitUsage = 2,           ///< Bad command line.
   kExitInput = 3,           ///< A recording, configuration or trajectory could not be read.
   kExitOutput = 4,          ///< An output could not be written.
-  kExitNotAvailable = 5,    ///< The requested mode or feature is not part of this build yet.
   kExitInterrupted = 130,   ///< Stopped by SIGINT/SIGTERM after flushing outputs.
 };
 
