@@ -1,5 +1,7 @@
 // Runs the rankslam executable on configuration and calibration files a user can get wrong: every
 // mistake must stop the run with exit 3 and a message naming the file and the key.
+#include "cli_support.hpp"
+
 #include <gtest/gtest.h>
 
 #include <sys/wait.h>
@@ -17,29 +19,7 @@ namespace {
 
 namespace fs = std::filesystem;
 
-struct CommandResult {
-  int exit_code = -1;
-  std::string output;  // stdout and stderr together
-};
-
-CommandResult run(const std::string& arguments) {
-  const std::string command = std::string(RANKSLAM_EXE) + " " + arguments + " 2>&1";
-  CommandResult result;
-  FILE* pipe = ::popen(command.c_str(), "r");
-  if (pipe == nullptr) return result;
-  std::array<char, 4096> buffer{};
-  while (std::fgets(buffer.data(), buffer.size(), pipe) != nullptr) result.output += buffer.data();
-  const int status = ::pclose(pipe);
-  result.exit_code = WIFEXITED(status) ? WEXITSTATUS(status) : -1;
-  return result;
-}
-
-std::string slurp(const fs::path& path) {
-  std::ifstream in(path, std::ios::binary);
-  std::stringstream text;
-  text << in.rdbuf();
-  return text.str();
-}
+using namespace cli_test;
 
 // A folder of this test's own: ctest runs the tests in parallel processes, other checkouts may too.
 fs::path test_dir() {

@@ -1,6 +1,8 @@
 // The rankslam executable on damaged or hostile recordings: every bad input ends in a named
 // warning or a named error with the documented exit code, never a crash, a hang or unbounded
 // memory. Each test damages its own copy of a small simulated recording.
+#include "cli_support.hpp"
+
 #include <gtest/gtest.h>
 
 #include <sys/stat.h>
@@ -21,30 +23,13 @@ namespace {
 
 namespace fs = std::filesystem;
 
-struct CommandResult {
-  int exit_code = -1;
-  std::string output;  // stdout and stderr together
-};
+using cli_test::CommandResult;
+using cli_test::slurp;
 
 // Runs rankslam under a time limit: a run that hangs ends with timeout's 124 (or 137 once killed).
 CommandResult run(const std::string& arguments, int timeout_s = 120) {
-  const std::string command = "timeout -k 5 " + std::to_string(timeout_s) + " " + std::string(RANKSLAM_EXE) + " " +
-                              arguments + " 2>&1";
-  CommandResult result;
-  FILE* pipe = ::popen(command.c_str(), "r");
-  if (pipe == nullptr) return result;
-  std::array<char, 4096> buffer{};
-  while (std::fgets(buffer.data(), buffer.size(), pipe) != nullptr) result.output += buffer.data();
-  const int status = ::pclose(pipe);
-  result.exit_code = WIFEXITED(status) ? WEXITSTATUS(status) : -1;
-  return result;
-}
-
-std::string slurp(const fs::path& path) {
-  std::ifstream in(path, std::ios::binary);
-  std::stringstream text;
-  text << in.rdbuf();
-  return text.str();
+  return cli_test::run_shell("timeout -k 5 " + std::to_string(timeout_s) + " " + std::string(RANKSLAM_EXE) + " " +
+                             arguments);
 }
 
 std::vector<std::string> lines_of(const fs::path& path) {

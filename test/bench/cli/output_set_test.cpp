@@ -1,6 +1,8 @@
 // The outputs of `rankslam replay` as a set: whatever stops a run (kill -9, SIGTERM, a full disk,
 // an unwritable --out), --out holds wholly the previous run's files or wholly the new run's.
 // RANKSLAM_EXE in the environment tests another build of the executable.
+#include "cli_support.hpp"
+
 #include <gtest/gtest.h>
 
 #include <fcntl.h>
@@ -45,12 +47,7 @@ std::string executable() {
   return override_exe != nullptr && *override_exe != '\0' ? override_exe : RANKSLAM_EXE;
 }
 
-std::string slurp(const fs::path& path) {
-  std::ifstream in(path, std::ios::binary);
-  std::stringstream text;
-  text << in.rdbuf();
-  return text.str();
-}
+using cli_test::slurp;
 
 fs::path fresh_dir(const std::string& name) {
   const fs::path dir = fs::temp_directory_path() / name;
