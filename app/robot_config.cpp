@@ -2,6 +2,7 @@
 
 #include "config_file.hpp"
 
+#include "rankslam/hal/thread_priority.hpp"
 #include "rankslam/yaml/strict_yaml.hpp"
 
 #include <cstdint>
@@ -20,7 +21,7 @@ const std::map<std::string, std::set<std::string>> kKeys = {
     {"camera", {"source", "replay_rate", "max_frames", "exit_after_end_s", "calibration", "width", "height", "fps", "ir"}},
     {"can", {"interface", "play_wheel_frames"}},
     {"output", {"pose_rate_hz", "heartbeat_rate_hz", "watchdog_timeout_s", "lost_after_failed_frames", "wheel_propagation", "dir",
-                "max_trajectory_poses"}},
+                "max_trajectory_poses", "realtime_priority"}},
 };
 
 // A string or boolean.
@@ -130,6 +131,7 @@ std::string load_robot_config(const std::filesystem::path& path, RobotConfig& co
     }
     check(read_number(output, "output", "max_trajectory_poses", std::uint32_t{1}, std::uint32_t{10'000'000},
                       config.max_trajectory_poses));
+    check(read_number(output, "output", "realtime_priority", 0, hal::kMaxRealtimePriority, config.output_realtime_priority));
   }
   if (!error.empty()) return error;
   if (auto range = nav::validate(config.output); !range.empty()) return file + "output." + range;
@@ -154,7 +156,8 @@ std::string describe_robot_config(const RobotConfig& config) {
        << "output.lost_after_failed_frames = " << config.output.lost_after_failed_frames << "\n"
        << "output.wheel_propagation = " << (config.output.wheel_propagation ? "true" : "false") << "\n"
        << "output.dir = " << config.output_dir.string() << "\n"
-       << "output.max_trajectory_poses = " << config.max_trajectory_poses << "\n";
+       << "output.max_trajectory_poses = " << config.max_trajectory_poses << "\n"
+       << "output.realtime_priority = " << config.output_realtime_priority << "  # SCHED_FIFO, 0 = ordinary scheduling\n";
   return text.str();
 }
 

@@ -51,6 +51,9 @@ struct RobotConfig {
   std::filesystem::path output_dir;
   /// output.max_trajectory_poses: capacity of the trajectory kept for the flush, reserved at start.
   std::uint32_t max_trajectory_poses = 100000;
+  /// output.realtime_priority: SCHED_FIFO priority of the pose output's thread, so a loaded CPU
+  /// does not delay the pose cycles; 0 = ordinary scheduling.
+  int output_realtime_priority = 10;
 };
 
 /// The top-level sections load_robot_config reads (robot, camera, can, output); the file's

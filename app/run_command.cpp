@@ -11,6 +11,7 @@
 #include "rankslam/eval/run_report.hpp"
 #include "rankslam/eval/trajectory.hpp"
 #include "rankslam/hal/file_set.hpp"
+#include "rankslam/hal/thread_priority.hpp"
 #include "rankslam/nav/pose_output.hpp"
 #include "rankslam/openni2/openni2_camera.hpp"
 #include "rankslam/replay/replay_camera.hpp"
@@ -20,6 +21,7 @@
 #include <atomic>
 #include <chrono>
 #include <cstdio>
+#include <future>
 #include <iostream>
 #include <memory>
 #include <optional>
@@ -147,7 +149,10 @@ int run_live(const RunArgs& args) {
   nav::PoseOutputCounters pose_counters;
   nav::WheelInputCounters wheel_counters;
   hal::CanBusStatistics bus_statistics;
+  std::promise<std::string> realtime_result;
   std::thread sender([&] {
+    realtime_result.set_value(robot.output_realtime_priority > 0 ? hal::make_this_thread_realtime(robot.output_realtime_priority)
+                                                                 : std::string());
     socketcan::SocketCanOptions options;
     options.interface_name = robot.can_interface;
     options.filters.push_back({wheel_can_id, 0x7FF, false});
@@ -162,6 +167,14 @@ int run_live(const RunArgs& args) {
     bus_statistics = bus.statistics();
     bus.close();
   });
+
+  const std::string realtime_error = realtime_result.get_future().get();
+  const int output_priority = realtime_error.empty() ? robot.output_realtime_priority : 0;
+  if (!realtime_error.empty()) {
+    std::cerr << "warning: output.realtime_priority: " << realtime_error
+              << "; the pose output runs with ordinary scheduling and a loaded CPU can delay its cycles\n";
+  }
+  std::cout << "pose output thread: " << (output_priority > 0 ? "SCHED_FIFO priority " + std::to_string(output_priority) : std::string("ordinary scheduling")) << std::endl;
 
   if (play_wheels) {
     // A frame played before the output thread's socket is bound never reaches it (the first wheel
@@ -275,6 +288,7 @@ int run_live(const RunArgs& args) {
   json.integer("pose_cycles", static_cast<long long>(pose_counters.pose_cycles));
   json.integer("lost_cycles", static_cast<long long>(pose_counters.lost_cycles));
   json.integer("heartbeats", static_cast<long long>(pose_counters.heartbeats));
+  json.integer("pose_output_realtime_priority", output_priority);
   json.integer("tx_dropped", static_cast<long long>(pose_counters.tx_dropped));
   json.integer("tx_faults", static_cast<long long>(pose_counters.tx_faults));
   json.integer("wheel_frames_played", player ? static_cast<long long>(player->sent()) : 0LL);

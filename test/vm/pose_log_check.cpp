@@ -57,6 +57,17 @@ double rotation_angle_deg(const Eigen::Isometry3d& a, const Eigen::Isometry3d& b
 
 double yaw_difference_deg(double a, double b) { return std::abs(std::fmod(a - b + 540.0, 360.0) - 180.0); }
 
+// An integer field of a report.json; -1 when the file or the field is missing.
+long report_integer(const std::filesystem::path& path, const std::string& key) {
+  std::ifstream in(path);
+  std::stringstream text;
+  text << in.rdbuf();
+  const std::string report = text.str();
+  std::smatch match;
+  if (!std::regex_search(report, match, std::regex("\"" + key + "\": (-?\\d+)"))) return -1;
+  return std::stol(match[1]);
+}
+
 }  // namespace
 
 int main(int argc, char** argv) {
@@ -101,10 +112,16 @@ int main(int argc, char** argv) {
   std::optional<Cycle> partial;
   int stage = 0;
   int broken_cycles = 0;
+  long output_frames = 0;  // pose and heartbeat frames: what the run's own socket sent
+  long capture_drops = 0;
   std::string line;
+  const std::regex drop_line(R"(^DROPCOUNT: .*\(total drops (\d+)\))");
   while (std::getline(log, line)) {
+    std::smatch drop;
+    if (std::regex_search(line, drop, drop_line)) capture_drops = std::max(capture_drops, std::stol(drop[1]));
     const auto frame = hal::parse_candump_line(line);
     if (!frame) continue;
+    if (frame->id != wheel_id) ++output_frames;
     if (frame->id == wheel_id) {
       for (std::size_t i = next_recorded; i < recorded.size() && i < next_recorded + 16; ++i) {
         if (recorded[i].id == frame->id && recorded[i].data == frame->data) {
@@ -149,6 +166,14 @@ int main(int argc, char** argv) {
       heartbeats.emplace_back(frame->stamp_ns, *decoded);
     }
   }
+  // The capture first: frames its socket dropped say nothing about what rankslam sent.
+  const std::filesystem::path run_report = std::filesystem::path(arg["--run-out"]) / "report.json";
+  const long sent = report_integer(run_report, "bus_frames_tx");
+  std::printf("frames rankslam sent %ld (tx_dropped %ld, tx_faults %ld), captured %ld; capture drops %ld\n", sent,
+              report_integer(run_report, "tx_dropped"), report_integer(run_report, "tx_faults"), output_frames, capture_drops);
+  if (capture_drops > 0) fail("candump's socket dropped " + std::to_string(capture_drops) + " frames: the capture, not the run, lost them");
+  if (sent != output_frames) fail("the run reports " + std::to_string(sent) + " frames sent, the bus carried " + std::to_string(output_frames));
+  if (report_integer(run_report, "tx_dropped") != 0 || report_integer(run_report, "tx_faults") != 0) fail("the run could not send every frame");
   if (broken_cycles > 0) fail(std::to_string(broken_cycles) + " incomplete or interleaved pose cycles");
   if (cycles.size() < 10) {
     fail("only " + std::to_string(cycles.size()) + " pose cycles in the log");
@@ -164,6 +189,9 @@ int main(int argc, char** argv) {
   // Rates, from the kernel receive stamps of the capturing socket.
   const double span_s = static_cast<double>(cycles.back().stamp_ns - cycles.front().stamp_ns) * 1e-9;
   const double measured_pose_hz = static_cast<double>(cycles.size() - 1) / span_s;
+  std::int64_t largest_gap_ns = 0;
+  for (std::size_t i = 1; i < cycles.size(); ++i) largest_gap_ns = std::max(largest_gap_ns, cycles[i].stamp_ns - cycles[i - 1].stamp_ns);
+  std::printf("largest gap between pose cycles %.1f ms (period %.1f ms)\n", static_cast<double>(largest_gap_ns) * 1e-6, 1e3 / pose_rate_hz);
   std::printf("pose cycles %zu over %.2f s: %.2f Hz (configured %.1f Hz)\n", cycles.size(), span_s, measured_pose_hz, pose_rate_hz);
   if (std::abs(measured_pose_hz - pose_rate_hz) > 0.1 * pose_rate_hz) fail("pose rate is not within 10 % of the configured rate");
   if (heartbeats.size() >= 2) {
@@ -319,13 +347,8 @@ int main(int argc, char** argv) {
       std::ifstream in(path);
       std::stringstream text;
       text << in.rdbuf();
-      const std::string report = text.str();
-      std::smatch match;
-      if (report.find("\"wheels_used\": true") == std::string::npos ||
-          !std::regex_search(report, match, std::regex(R"("wheel_prior_frames": (\d+))"))) {
-        return -1L;
-      }
-      return std::stol(match[1]);
+      if (text.str().find("\"wheels_used\": true") == std::string::npos) return -1L;
+      return report_integer(path, "wheel_prior_frames");
     };
     const long run_priors = prior_frames(run_out / "report.json");
     const long replay_priors = prior_frames(std::filesystem::path(arg["--reference"]).parent_path() / "report.json");

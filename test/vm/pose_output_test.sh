@@ -5,9 +5,13 @@
 # at the configured rate that decode to the trajectory `rankslam replay` wrote for the same
 # recording with its wheel frames, moved on by the wheels since each frame, within 1 mm and
 # 0.1°, LOST after the watchdog once the recording ends with the heartbeat going on, and
-# trajectory and map flushed after SIGTERM.
+# trajectory and map flushed after SIGTERM. candump runs under SCHED_FIFO with a large receive
+# buffer and reports its own drops, so a lost frame is told apart from one never sent.
 #
-#   test/vm/pose_output_test.sh RANKSLAM POSE_LOG_CHECK WORK_DIR [FRAMES]
+#   test/vm/pose_output_test.sh RANKSLAM POSE_LOG_CHECK WORK_DIR [stress]
+#
+# stress: from the end of the recording, three busy processes at nice -20 take the CPU for 4 s
+# while the pose output goes on; its cycles must stay whole, in order and at their rate.
 #
 # WORK_DIR must be outside /tmp (the VM sees the host's root read-only, with its own /tmp).
 set -euo pipefail
@@ -15,8 +19,13 @@ here="$(cd "$(dirname "${BASH_SOURCE[0]}")" && pwd)"
 rankslam="$1"
 checker="$2"
 work="$3"
-frames="${4:-60}"
-readonly pose_rate_hz=50 heartbeat_rate_hz=10 watchdog_s=0.4
+mode="${4:-normal}"
+readonly frames=60 pose_rate_hz=50 heartbeat_rate_hz=10 watchdog_s=0.4 stress_s=4
+case "$mode" in
+  normal) hogs=0 ;;
+  stress) hogs=3 ;;
+  *) echo "usage: $0 RANKSLAM POSE_LOG_CHECK WORK_DIR [stress]"; exit 2 ;;
+esac
 
 rm -rf "$work"
 mkdir -p "$work"
@@ -42,12 +51,12 @@ output:
   watchdog_timeout_s: $watchdog_s
 YAML
 
-# Inside the VM: capture the bus, run until the end of the recording, let the watchdog expire,
-# stop with SIGTERM, then check.
+# Inside the VM: capture the bus, run until the end of the recording, (stress: take the CPU),
+# let the watchdog expire, stop with SIGTERM, then check.
 cat > "$work/in-vm.sh" <<SH
 set -u
 out="\$RANKSLAM_VM_OUT"
-candump -L -n 100000 vcan0 > "\$out/bus.log" 2> "\$out/candump.err" &
+chrt -f 60 candump -d -r 8388608 -L -n 1000000 vcan0 > "\$out/bus.log" 2> "\$out/candump.err" &
 dump=\$!
 sleep 0.3
 "$rankslam" run --config "$work/robot.yaml" --mode baseline --out "\$out/run" > "\$out/run.log" 2>&1 &
@@ -57,6 +66,12 @@ for i in \$(seq 1 1200); do
   kill -0 \$run 2>/dev/null || break
   sleep 0.1
 done
+hog_pids=""
+for i in \$(seq 1 $hogs); do
+  nice -n -20 timeout $stress_s sh -c 'while :; do :; done' &
+  hog_pids="\$hog_pids \$!"
+done
+[ -z "\$hog_pids" ] || { wait \$hog_pids; echo "$hogs busy processes at nice -20 ran for $stress_s s"; }
 sleep 1.5
 kill -TERM \$run
 wait \$run

@@ -1,5 +1,6 @@
 #!/usr/bin/env bash
-# Runs a command against a real Linux kernel: boots Debian's own kernel in qemu (TCG), loads the
+# Runs a command against a real Linux kernel: boots Debian's own kernel in qemu (KVM where it
+# works, else TCG), loads the
 # SocketCAN (vcan), V4L2 (vivid) and 9p modules, creates vcan0, shares the host's root file
 # system read-only over 9p and runs the command chrooted into it, so the host's binaries and
 # libraries run on the VM's kernel. Prints the command's output as it runs and exits with its
@@ -18,7 +19,10 @@
 #   RANKSLAM_VM_MEMORY_MB   guest memory (default 1024)
 #   RANKSLAM_VM_CPUS        guest CPUs (default 1: one emulated CPU keeps up with the camera
 #                           better than two competing for the host's cores)
-#   RANKSLAM_VM_CPU         emulated CPU model (default max: the newest instruction sets TCG has)
+#   RANKSLAM_VM_CPU         emulated CPU model under TCG (default max: the newest instruction sets
+#                           TCG has); KVM runs the host's
+#   RANKSLAM_VM_ACCEL       kvm, tcg or auto (default): KVM when /dev/kvm is usable and a probe
+#                           boot under it finishes (remembered per host kernel and qemu version)
 #   RANKSLAM_VM_KEEP        when set, keep the run directory (console log, command output files)
 #   RANKSLAM_VM_NO_INSTALL  when set, never run apt-get (missing tools mean skip)
 #   RANKSLAM_VM_VIVID_OPTS  module options for vivid (default n_devs=1)
@@ -286,12 +290,54 @@ write_command() {
   } > "$out/command.sh"
 }
 
+# (2b) The accelerator. /dev/kvm can exist where KVM does not work (nested virtualisation that
+# aborts or spins in the host kernel), so a tiny initramfs is booted under KVM first.
+pick_accel() {
+  accel_args=(-accel tcg -cpu "$cpu_model")
+  local wanted="${RANKSLAM_VM_ACCEL:-auto}"
+  case "$wanted" in
+    tcg) return 0 ;;
+    kvm) accel_args=(-accel kvm -cpu host); return 0 ;;
+    auto) ;;
+    *) fail "RANKSLAM_VM_ACCEL=$wanted: expected kvm, tcg or auto" ;;
+  esac
+  if [[ ! -r /dev/kvm || ! -w /dev/kvm ]]; then
+    log "no usable /dev/kvm: TCG"
+    return 0
+  fi
+  local qemu_version
+  qemu_version="$(qemu-system-x86_64 --version | head -n 1 | tr -c 'A-Za-z0-9.\n' '_')"
+  local verdict="$cache_dir/kvm-$(uname -r)-$qemu_version"
+  if [[ ! -f "$verdict" ]]; then
+    local probe="$run_dir/kvm-probe"
+    mkdir -p "$probe/root/bin" "$probe/root/dev" "$probe/root/proc"
+    cp /bin/busybox "$probe/root/bin/busybox"
+    printf '#!/bin/busybox sh\n/bin/busybox mount -t devtmpfs devtmpfs /dev\n/bin/busybox echo %s > /dev/ttyS0\n/bin/busybox poweroff -f\n' \
+      "RANKSLAM-KVM-PROBE-OK" > "$probe/root/init"
+    chmod 755 "$probe/root/init"
+    (cd "$probe/root" && find . | busybox cpio -o -H newc 2>/dev/null | gzip -1) > "$probe/initramfs.cpio.gz"
+    local result=tcg
+    if timeout -k 5 30 qemu-system-x86_64 -accel kvm -cpu host -m 256 -nographic -no-reboot -nodefaults \
+         -serial stdio -monitor none -kernel "$kernel_dir/vmlinuz" -initrd "$probe/initramfs.cpio.gz" \
+         -append "console=ttyS0 quiet panic=-1" < /dev/null 2>&1 | grep -aq "RANKSLAM-KVM-PROBE-OK"; then
+      result=kvm
+    fi
+    echo "$result" > "$verdict"
+  fi
+  if [[ "$(cat "$verdict")" == kvm ]]; then
+    accel_args=(-accel kvm -cpu host)
+    log "KVM"
+  else
+    log "KVM does not work on this host (the probe boot did not finish; $verdict): TCG"
+  fi
+}
+
 # (3) Boot, stream the console, take the exit code from the result line.
 run_vm() {
   local log_file="$run_dir/console.log"
   local start_s=$SECONDS
   set +e
-  timeout -k 10 "$timeout_s" qemu-system-x86_64 -accel tcg -cpu "$cpu_model" -m "$memory_mb" -smp "$cpus" \
+  timeout -k 10 "$timeout_s" qemu-system-x86_64 "${accel_args[@]}" -m "$memory_mb" -smp "$cpus" \
       -nographic -no-reboot -nodefaults -serial stdio -monitor none \
       -kernel "$kernel_dir/vmlinuz" -initrd "$run_dir/initramfs.cpio.gz" \
       -append "console=ttyS0 quiet loglevel=3 panic=-1 oops=panic" \
@@ -331,6 +377,7 @@ keep_dir=""
 cleanup() { [[ -n "$keep_dir" || -n "${RANKSLAM_VM_KEEP:-}" ]] || rm -rf "$run_dir"; }
 trap cleanup EXIT
 build_initramfs
+pick_accel
 write_command "$@"
 set +e
 run_vm

@@ -245,6 +245,8 @@ TEST_F(V4l2Vm, MjpegIsDecodedWhenOfferedAndRefusedClearlyOtherwise) {
 // Frames delivered in one window of the guest's monotonic clock, and what came with them.
 struct CaptureWindow {
   int delivered = 0;
+  /// Frames the device produced in the window: the span of the delivered frames' sequence numbers.
+  std::uint64_t produced = 0;
   int timeouts = 0;
   int stamp_reversals = 0;
   int sequence_reversals = 0;
@@ -263,6 +265,7 @@ CaptureWindow capture_window(V4l2Camera& camera, hal::ImageFrame& frame, std::ch
   const std::uint64_t gaps_before = camera.counters().dropped;
   std::int64_t last_stamp_ns = frame.stamp_ns;
   std::uint32_t last_sequence = frame.sequence;
+  const std::uint32_t first_sequence = frame.sequence;
   const std::int64_t first_stamp_ns = frame.stamp_ns;
   double interval_sum_ms = 0.0;
   const auto cpu_before = cpu_jiffies();
@@ -287,6 +290,7 @@ CaptureWindow capture_window(V4l2Camera& camera, hal::ImageFrame& frame, std::ch
   }
   const auto cpu_after = cpu_jiffies();
   result.device_gaps = camera.counters().dropped - gaps_before;
+  result.produced = last_sequence - first_sequence;
   result.mean_interval_ms = result.delivered > 0 ? interval_sum_ms / result.delivered : 0.0;
   result.stamp_span_s = static_cast<double>(last_stamp_ns - first_stamp_ns) * 1e-9;
   result.cpu_busy_percent =
@@ -294,7 +298,7 @@ CaptureWindow capture_window(V4l2Camera& camera, hal::ImageFrame& frame, std::ch
   return result;
 }
 
-TEST_F(V4l2Vm, DeliversAtLeast95PercentOfTheExpectedFramesOver5Seconds) {
+TEST_F(V4l2Vm, DeliversAtLeast95PercentOfTheFramesTheDeviceProducesOver5Seconds) {
   V4l2Camera camera(options(25));  // vivid's fastest rate at 640x480
   ASSERT_EQ(camera.open(), "");
   const double fps = camera.negotiated().fps();
@@ -306,23 +310,28 @@ TEST_F(V4l2Vm, DeliversAtLeast95PercentOfTheExpectedFramesOver5Seconds) {
   const auto warm_up_end = std::chrono::steady_clock::now() + 1s;
   while (std::chrono::steady_clock::now() < warm_up_end) ASSERT_EQ(camera.read(frame, 3000ms), ReadStatus::kOk);
 
-  // The emulated CPU runs on the host's cores; a burst of other work on the host starves it
-  // for a moment. A driver that loses frames loses them in every window, so a short first
-  // window gets one more.
+  // What the driver controls is measured against what the device produced (its sequence
+  // numbers): every frame delivered or counted as skipped, and at least 95 % delivered. How many
+  // vivid produces in 5 s of the guest's clock is the emulator's business, only reported. A
+  // burst of work on the host can stall the whole VM for a moment, so a short window gets one
+  // more; a driver that loses frames loses them in every window.
   constexpr auto kWindow = 5000ms;
-  const double expected = fps * std::chrono::duration<double>(kWindow).count();
+  const double nominal = fps * std::chrono::duration<double>(kWindow).count();
   double best_ratio = 0.0;
   for (int attempt = 1; attempt <= 2 && best_ratio < 0.95; ++attempt) {
     const CaptureWindow window = capture_window(camera, frame, kWindow);
     ASSERT_EQ(window.failure, ReadStatus::kOk) << hal::to_string(window.failure);
-    const double ratio = window.delivered / expected;
+    ASSERT_GT(window.produced, 0U);
+    const double ratio = window.delivered / static_cast<double>(window.produced);
     best_ratio = std::max(best_ratio, ratio);
-    std::printf("window %d: delivered %d of %.0f expected frames in 5 s (%.1f %%); device sequence gaps %llu, "
-                "timeouts %d; mean stamp interval %.2f ms (nominal %.2f ms), stamps span %.3f s; guest CPU busy "
-                "%.0f %%\n",
-                attempt, window.delivered, expected, 100.0 * ratio,
-                static_cast<unsigned long long>(window.device_gaps), window.timeouts, window.mean_interval_ms,
-                1e3 / fps, window.stamp_span_s, window.cpu_busy_percent);
+    std::printf("window %d: delivered %d of the %llu frames the device produced (%.1f %%), skipped by the device %llu; "
+                "%.1f %% of the nominal %.0f in 5 s; timeouts %d; mean stamp interval %.2f ms (nominal %.2f ms), "
+                "stamps span %.3f s; guest CPU busy %.0f %%\n",
+                attempt, window.delivered, static_cast<unsigned long long>(window.produced), 100.0 * ratio,
+                static_cast<unsigned long long>(window.device_gaps), 100.0 * window.delivered / nominal, nominal,
+                window.timeouts, window.mean_interval_ms, 1e3 / fps, window.stamp_span_s, window.cpu_busy_percent);
+    EXPECT_EQ(window.produced, static_cast<std::uint64_t>(window.delivered) + window.device_gaps)
+        << "a frame was neither delivered nor counted as skipped";
     EXPECT_EQ(window.stamp_reversals, 0);
     EXPECT_EQ(window.sequence_reversals, 0);
   }

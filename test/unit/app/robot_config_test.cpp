@@ -34,7 +34,8 @@ TEST_F(RobotConfigTest, ReadsEverySectionAndResolvesRelativePaths) {
 robot: {name: test}
 camera: {source: "replay:rec/one", replay_rate: 0, max_frames: 5, exit_after_end_s: -1}
 can: {interface: vcan0, play_wheel_frames: false}
-output: {pose_rate_hz: 25, heartbeat_rate_hz: 2, watchdog_timeout_s: 0.3, lost_after_failed_frames: 4, dir: out, max_trajectory_poses: 10}
+output: {pose_rate_hz: 25, heartbeat_rate_hz: 2, watchdog_timeout_s: 0.3, lost_after_failed_frames: 4, dir: out, max_trajectory_poses: 10,
+         realtime_priority: 20}
 slam: {orb_features: 500}
 )", config);
   ASSERT_EQ(error, "");
@@ -51,6 +52,7 @@ slam: {orb_features: 500}
   EXPECT_EQ(config.output.lost_after_failed_frames, 4);
   EXPECT_EQ(config.output_dir, dir_ / "out");
   EXPECT_EQ(config.max_trajectory_poses, 10U);
+  EXPECT_EQ(config.output_realtime_priority, 20);
   EXPECT_NE(describe_robot_config(config).find("output.pose_rate_hz = 25 Hz"), std::string::npos);
 }
 
@@ -75,6 +77,8 @@ TEST_F(RobotConfigTest, ErrorsNameTheKey) {
   EXPECT_NE(error_of("camera: {source: 'replay:r'}\nvideo: {}\n").find("'video' is not a known section"), std::string::npos);
   EXPECT_NE(error_of("camera: {source: 'replay:r'}\noutput: {pose_rate_hz: 0}\n").find("output.pose_rate_hz"), std::string::npos);
   EXPECT_NE(error_of("camera: {source: 'replay:r'}\noutput: {pose_rate_hz: fast}\n").find("output.pose_rate_hz is not a valid value"), std::string::npos);
+  EXPECT_NE(error_of("camera: {source: 'replay:r'}\noutput: {realtime_priority: 50}\n").find("output.realtime_priority"), std::string::npos);
+  EXPECT_NE(error_of("camera: {source: 'replay:r'}\noutput: {realtime_priority: -1}\n").find("output.realtime_priority"), std::string::npos);
   EXPECT_NE(error_of("camera: {source: 'replay:r'}\ncan: {interface: ''}\n").find("can.interface"), std::string::npos);
   EXPECT_NE(error_of("camera: {source: 'replay:r', replay_rate: -1}\n").find("camera.replay_rate"), std::string::npos);
   EXPECT_NE(error_of("camera: [1, 2]\n").find("'camera' must be a map"), std::string::npos);
