@@ -6,7 +6,11 @@
 // the run took its wheel prior from the frames received on the bus, and it flushed its outputs.
 //
 //   pose_log_check --log CANDUMP_L --reference TRAJ --recording DIR --run-out DIR
-//                  --pose-rate HZ --heartbeat-rate HZ --watchdog-s S
+//                  --pose-rate HZ --heartbeat-rate HZ --watchdog-s S [--faults FROM_S TO_S]
+//
+// --faults: the bus failed between these CLOCK_REALTIME times (candump's stamps). Lost or
+// broken cycles and counter jumps are allowed there only; the run must have counted frames it
+// could not send, flagged them in a heartbeat, and kept its rates before and after.
 #include "rankslam/eval/trajectory.hpp"
 #include "rankslam/hal/candump.hpp"
 #include "rankslam/nav/pose_frames.hpp"
@@ -82,6 +86,18 @@ int main(int argc, char** argv) {
   const double pose_rate_hz = std::stod(arg["--pose-rate"]);
   const double heartbeat_rate_hz = std::stod(arg["--heartbeat-rate"]);
   const double watchdog_s = std::stod(arg["--watchdog-s"]);
+  // The fault window; empty without --faults.
+  std::int64_t faults_from_ns = 0;
+  std::int64_t faults_to_ns = -1;
+  for (int i = 1; i + 2 < argc; ++i) {
+    if (std::string(argv[i]) == "--faults") {
+      faults_from_ns = std::llround(std::stod(argv[i + 1]) * 1e9);
+      faults_to_ns = std::llround(std::stod(argv[i + 2]) * 1e9);
+    }
+  }
+  const bool faults = faults_to_ns >= faults_from_ns;
+  // Whether [a, b] overlaps the fault window.
+  const auto touches_faults = [&](std::int64_t a_ns, std::int64_t b_ns) { return faults && b_ns >= faults_from_ns && a_ns <= faults_to_ns; };
 
   replay::Recording recording;
   if (auto error = replay::open_recording(arg["--recording"], recording); !error.empty()) {
@@ -112,6 +128,11 @@ int main(int argc, char** argv) {
   std::optional<Cycle> partial;
   int stage = 0;
   int broken_cycles = 0;
+  int broken_in_faults = 0;
+  // A cycle broken off at `stamp_ns`: allowed only when it overlaps the fault window.
+  const auto broken = [&](std::int64_t stamp_ns) {
+    ++(touches_faults(partial ? partial->stamp_ns : stamp_ns, stamp_ns) ? broken_in_faults : broken_cycles);
+  };
   long output_frames = 0;  // pose and heartbeat frames: what the run's own socket sent
   long capture_drops = 0;
   std::string line;
@@ -131,7 +152,7 @@ int main(int argc, char** argv) {
         }
       }
     } else if (frame->id == nav::kPoseXYYawId) {
-      if (stage != 0) ++broken_cycles;
+      if (stage != 0) broken(frame->stamp_ns);
       partial = Cycle{};
       partial->stamp_ns = frame->stamp_ns;
       partial->newest_wheel = newest_wheel;
@@ -141,22 +162,22 @@ int main(int argc, char** argv) {
       stage = 1;
     } else if (frame->id == nav::kPoseZRollPitchId) {
       const auto decoded = nav::decode_pose_z_roll_pitch(*frame);
-      if (stage != 1 || !decoded || decoded->counter != partial->xy_yaw.counter) { ++broken_cycles; stage = 0; continue; }
+      if (stage != 1 || !decoded || decoded->counter != partial->xy_yaw.counter) { broken(frame->stamp_ns); stage = 0; continue; }
       partial->z_roll_pitch = *decoded;
       stage = 2;
     } else if (frame->id == nav::kMapOdomXYYawId) {
       const auto decoded = nav::decode_pose_xy_yaw(*frame, nav::kMapOdomXYYawId);
-      if (stage != 2 || !decoded || decoded->counter != partial->xy_yaw.counter) { ++broken_cycles; stage = 0; continue; }
+      if (stage != 2 || !decoded || decoded->counter != partial->xy_yaw.counter) { broken(frame->stamp_ns); stage = 0; continue; }
       partial->map_odom_xy_yaw = *decoded;
       stage = 3;
     } else if (frame->id == nav::kMapOdomZRollPitchId) {
       const auto decoded = nav::decode_pose_z_roll_pitch(*frame, nav::kMapOdomZRollPitchId);
-      if (stage != 3 || !decoded || decoded->counter != partial->xy_yaw.counter) { ++broken_cycles; stage = 0; continue; }
+      if (stage != 3 || !decoded || decoded->counter != partial->xy_yaw.counter) { broken(frame->stamp_ns); stage = 0; continue; }
       partial->map_odom_z_roll_pitch = *decoded;
       stage = 4;
     } else if (frame->id == nav::kPoseQualityId) {
       const auto decoded = nav::decode_pose_quality(*frame);
-      if (stage != 4 || !decoded || decoded->counter != partial->xy_yaw.counter) { ++broken_cycles; stage = 0; continue; }
+      if (stage != 4 || !decoded || decoded->counter != partial->xy_yaw.counter) { broken(frame->stamp_ns); stage = 0; continue; }
       partial->quality = *decoded;
       cycles.push_back(*partial);
       stage = 0;
@@ -169,44 +190,76 @@ int main(int argc, char** argv) {
   // The capture first: frames its socket dropped say nothing about what rankslam sent.
   const std::filesystem::path run_report = std::filesystem::path(arg["--run-out"]) / "report.json";
   const long sent = report_integer(run_report, "bus_frames_tx");
-  std::printf("frames rankslam sent %ld (tx_dropped %ld, tx_faults %ld), captured %ld; capture drops %ld\n", sent,
-              report_integer(run_report, "tx_dropped"), report_integer(run_report, "tx_faults"), output_frames, capture_drops);
+  const long tx_dropped = report_integer(run_report, "tx_dropped");
+  const long tx_faults = report_integer(run_report, "tx_faults");
+  std::printf("frames rankslam sent %ld (refused: queue full %ld, bus down %ld), captured %ld; capture drops %ld\n", sent,
+              tx_dropped, tx_faults, output_frames, capture_drops);
   if (capture_drops > 0) fail("candump's socket dropped " + std::to_string(capture_drops) + " frames: the capture, not the run, lost them");
-  if (sent != output_frames) fail("the run reports " + std::to_string(sent) + " frames sent, the bus carried " + std::to_string(output_frames));
-  if (report_integer(run_report, "tx_dropped") != 0 || report_integer(run_report, "tx_faults") != 0) fail("the run could not send every frame");
+  if (!faults) {
+    if (sent != output_frames) fail("the run reports " + std::to_string(sent) + " frames sent, the bus carried " + std::to_string(output_frames));
+    if (tx_dropped != 0 || tx_faults != 0) fail("the run could not send every frame");
+  } else {
+    // Frames netem still held when its queue was removed count as sent but never reach the bus.
+    if (sent < output_frames) fail("the bus carried more frames than the run reports sent");
+    if (tx_dropped <= 0) fail("no frame counted as refused by the full transmit queue (tx_dropped)");
+    if (tx_faults <= 0) fail("no frame counted as not sent on the downed interface (tx_faults)");
+    std::printf("pose cycles broken by the faults: %d\n", broken_in_faults);
+  }
   if (broken_cycles > 0) fail(std::to_string(broken_cycles) + " incomplete or interleaved pose cycles");
   if (cycles.size() < 10) {
     fail("only " + std::to_string(cycles.size()) + " pose cycles in the log");
     return 1;
   }
   for (std::size_t i = 1; i < cycles.size(); ++i) {
-    if (cycles[i].xy_yaw.counter != (cycles[i - 1].xy_yaw.counter + 1) % nav::kPoseCounterModulus) {
+    if (cycles[i].xy_yaw.counter != (cycles[i - 1].xy_yaw.counter + 1) % nav::kPoseCounterModulus &&
+        !touches_faults(cycles[i - 1].stamp_ns, cycles[i].stamp_ns)) {
       fail("pose cycle counter jumps at cycle " + std::to_string(i));
       break;
     }
   }
-
-  // Rates, from the kernel receive stamps of the capturing socket.
-  const double span_s = static_cast<double>(cycles.back().stamp_ns - cycles.front().stamp_ns) * 1e-9;
-  const double measured_pose_hz = static_cast<double>(cycles.size() - 1) / span_s;
   std::int64_t largest_gap_ns = 0;
-  for (std::size_t i = 1; i < cycles.size(); ++i) largest_gap_ns = std::max(largest_gap_ns, cycles[i].stamp_ns - cycles[i - 1].stamp_ns);
+  for (std::size_t i = 1; i < cycles.size(); ++i) {
+    if (!touches_faults(cycles[i - 1].stamp_ns, cycles[i].stamp_ns)) largest_gap_ns = std::max(largest_gap_ns, cycles[i].stamp_ns - cycles[i - 1].stamp_ns);
+  }
   std::printf("largest gap between pose cycles %.1f ms (period %.1f ms)\n", static_cast<double>(largest_gap_ns) * 1e-6, 1e3 / pose_rate_hz);
-  std::printf("pose cycles %zu over %.2f s: %.2f Hz (configured %.1f Hz)\n", cycles.size(), span_s, measured_pose_hz, pose_rate_hz);
-  if (std::abs(measured_pose_hz - pose_rate_hz) > 0.1 * pose_rate_hz) fail("pose rate is not within 10 % of the configured rate");
-  if (heartbeats.size() >= 2) {
-    const double hb_span_s = static_cast<double>(heartbeats.back().first - heartbeats.front().first) * 1e-9;
-    const double measured_hb_hz = static_cast<double>(heartbeats.size() - 1) / hb_span_s;
-    std::printf("heartbeats %zu: %.2f Hz (configured %.1f Hz)\n", heartbeats.size(), measured_hb_hz, heartbeat_rate_hz);
-    if (std::abs(measured_hb_hz - heartbeat_rate_hz) > 0.1 * heartbeat_rate_hz) fail("heartbeat rate is not within 10 % of the configured rate");
-    for (std::size_t i = 1; i < heartbeats.size(); ++i) {
-      if (heartbeats[i].second.counter != static_cast<std::uint8_t>(heartbeats[i - 1].second.counter + 1U)) {
-        fail("heartbeat rolling counter jumps at heartbeat " + std::to_string(i));
-        break;
+
+  // Rates, from the kernel receive stamps of the capturing socket; with faults, before and after them.
+  const auto check_rate = [&](const char* what, const std::vector<std::int64_t>& all_stamps, double configured_hz) {
+    for (const bool after : {false, true}) {
+      std::vector<std::int64_t> stamps;
+      for (const std::int64_t stamp : all_stamps) {
+        if (!faults || (after ? stamp > faults_to_ns : stamp < faults_from_ns)) stamps.push_back(stamp);
       }
+      if (stamps.size() < 2) {
+        fail(std::string("fewer than two ") + what + (faults ? (after ? " after the faults" : " before the faults") : ""));
+      } else {
+        const double span_s = static_cast<double>(stamps.back() - stamps.front()) * 1e-9;
+        const double hz = static_cast<double>(stamps.size() - 1) / span_s;
+        std::printf("%s%s: %zu over %.2f s, %.2f Hz (configured %.1f Hz)\n", what,
+                    faults ? (after ? " after the faults" : " before the faults") : "", stamps.size(), span_s, hz, configured_hz);
+        if (std::abs(hz - configured_hz) > 0.1 * configured_hz) fail(std::string(what) + " rate is not within 10 % of the configured rate");
+      }
+      if (!faults) break;
     }
-  } else {
-    fail("fewer than two heartbeats");
+  };
+  std::vector<std::int64_t> cycle_stamps;
+  for (const Cycle& cycle : cycles) cycle_stamps.push_back(cycle.stamp_ns);
+  check_rate("pose cycles", cycle_stamps, pose_rate_hz);
+  std::vector<std::int64_t> heartbeat_stamps;
+  for (const auto& [stamp_ns, heartbeat] : heartbeats) heartbeat_stamps.push_back(stamp_ns);
+  check_rate("heartbeats", heartbeat_stamps, heartbeat_rate_hz);
+  for (std::size_t i = 1; i < heartbeats.size(); ++i) {
+    if (heartbeats[i].second.counter != static_cast<std::uint8_t>(heartbeats[i - 1].second.counter + 1U) &&
+        !touches_faults(heartbeats[i - 1].first, heartbeats[i].first)) {
+      fail("heartbeat rolling counter jumps at heartbeat " + std::to_string(i));
+      break;
+    }
+  }
+  if (faults) {
+    // The first heartbeat that gets through after refused frames says so (CanTxDropped).
+    bool flagged = false;
+    for (const auto& [stamp_ns, heartbeat] : heartbeats) flagged = flagged || (heartbeat.can_tx_dropped && stamp_ns >= faults_from_ns);
+    if (!flagged) fail("no heartbeat flagged CanTxDropped after the faults");
   }
 
   // Poses against the replayed trajectory, frame by frame.

@@ -8,10 +8,13 @@
 # trajectory and map flushed after SIGTERM. candump runs under SCHED_FIFO with a large receive
 # buffer and reports its own drops, so a lost frame is told apart from one never sent.
 #
-#   test/vm/pose_output_test.sh RANKSLAM POSE_LOG_CHECK WORK_DIR [stress]
+#   test/vm/pose_output_test.sh RANKSLAM POSE_LOG_CHECK WORK_DIR [stress|faults]
 #
 # stress: from the end of the recording, three busy processes at nice -20 take the CPU for 4 s
 # while the pose output goes on; its cycles must stay whole, in order and at their rate.
+# faults: after the end of the recording vcan0 goes down for 1 s, and then a netem queue that
+# holds every frame for 10 s fills the transmit queue for 1 s; the run must count the frames it
+# could not send, flag them in a heartbeat, keep running and send at its rates again after.
 #
 # WORK_DIR must be outside /tmp (the VM sees the host's root read-only, with its own /tmp).
 set -euo pipefail
@@ -24,7 +27,8 @@ readonly frames=60 pose_rate_hz=50 heartbeat_rate_hz=10 watchdog_s=0.4 stress_s=
 case "$mode" in
   normal) hogs=0 ;;
   stress) hogs=3 ;;
-  *) echo "usage: $0 RANKSLAM POSE_LOG_CHECK WORK_DIR [stress]"; exit 2 ;;
+  faults) hogs=0 ;;
+  *) echo "usage: $0 RANKSLAM POSE_LOG_CHECK WORK_DIR [stress|faults]"; exit 2 ;;
 esac
 
 rm -rf "$work"
@@ -51,12 +55,12 @@ output:
   watchdog_timeout_s: $watchdog_s
 YAML
 
-# Inside the VM: capture the bus, run until the end of the recording, (stress: take the CPU),
-# let the watchdog expire, stop with SIGTERM, then check.
+# Inside the VM: capture the bus, run until the end of the recording, (stress: take the CPU;
+# faults: break the bus), let the watchdog expire, stop with SIGTERM, then check.
 cat > "$work/in-vm.sh" <<SH
 set -u
 out="\$RANKSLAM_VM_OUT"
-chrt -f 60 candump -d -r 8388608 -L -n 1000000 vcan0 > "\$out/bus.log" 2> "\$out/candump.err" &
+chrt -f 60 candump -D -d -r 8388608 -L -n 1000000 vcan0 > "\$out/bus.log" 2> "\$out/candump.err" &
 dump=\$!
 sleep 0.3
 "$rankslam" run --config "$work/robot.yaml" --mode baseline --out "\$out/run" > "\$out/run.log" 2>&1 &
@@ -72,6 +76,17 @@ for i in \$(seq 1 $hogs); do
   hog_pids="\$hog_pids \$!"
 done
 [ -z "\$hog_pids" ] || { wait \$hog_pids; echo "$hogs busy processes at nice -20 ran for $stress_s s"; }
+fault_window=""
+if [ "$mode" = faults ]; then
+  sleep 1
+  from=\$(date +%s.%N)
+  ip link set vcan0 down && sleep 1 && ip link set vcan0 up && sleep 1 &&
+    tc qdisc add dev vcan0 root netem delay 10s limit 4 && sleep 1 && tc qdisc del dev vcan0 root ||
+    echo "FAIL: the bus faults could not be made"
+  fault_window="--faults \$from \$(date +%s.%N)"
+  echo "faults: vcan0 down 1 s, up 1 s, transmit queue held full 1 s (\$fault_window)"
+  sleep 2
+fi
 sleep 1.5
 kill -TERM \$run
 wait \$run
@@ -81,7 +96,7 @@ kill \$dump
 cat "\$out/run.log"
 echo "rankslam run exit code \$code (130 expected after SIGTERM)"
 "$checker" --log "\$out/bus.log" --reference "$work/replay/trajectory.txt" --recording "$work/recording" \
-  --run-out "\$out/run" --pose-rate $pose_rate_hz --heartbeat-rate $heartbeat_rate_hz --watchdog-s $watchdog_s
+  --run-out "\$out/run" --pose-rate $pose_rate_hz --heartbeat-rate $heartbeat_rate_hz --watchdog-s $watchdog_s \$fault_window
 check=\$?
 grep -c "^(.*) vcan0 101#" "\$out/bus.log" | sed 's/^/wheel frames on the bus: /'
 grep -c "^(" "\$out/bus.log" | sed 's/^/frames on the bus: /'
