@@ -346,6 +346,50 @@ TEST(OpenNI2CameraFileFault, TruncatedToAnEighthUnderThePlaybackEndsInFault) {
   std::filesystem::remove_all(files.dir);
 }
 
+// Reads of kFaultWait that return within `window` of a lasting fault, each kFault.
+int faulted_reads_during(OpenNI2Camera& camera, std::chrono::steady_clock::duration window) {
+  hal::RgbdFrame frame;
+  int reads = 0;
+  const auto end = std::chrono::steady_clock::now() + window;
+  while (std::chrono::steady_clock::now() < end) {
+    EXPECT_EQ(camera.read(frame, kFaultWait), hal::ReadStatus::kFault) << "read " << reads;
+    ++reads;
+  }
+  return reads;
+}
+
+TEST(OpenNI2CameraFileFault, ALastingFaultSleepsInReadInsteadOfSpinning) {
+  const FaultFiles files = record_long_take("oni_lasting_fault");
+  // 0 ms: a reopen at every read; 400 ms: some reads wake early for a due reopen attempt.
+  for (const auto interval : {0ms, 400ms}) {
+    SCOPED_TRACE("reopen_interval " + std::to_string(interval.count()) + " ms");
+    std::error_code ec;
+    std::filesystem::copy_file(files.good, files.take, std::filesystem::copy_options::overwrite_existing, ec);
+    ASSERT_FALSE(ec) << ec.message();
+    OpenNI2Options options = playback_options(files.take);
+    options.reopen_interval = interval;
+    OpenNI2Camera camera(options);
+    const FaultRun run = play_through_fault(camera, [&] {
+      std::filesystem::resize_file(files.take, std::filesystem::file_size(files.take) / 8);
+    });
+    ASSERT_EQ(run.end, hal::ReadStatus::kFault);
+    // Each read sleeps until its wait ends or a reopen attempt is due: ~8-13 in 2 s. A read that
+    // returned kFault at once made the caller spin: thousands.
+    const int reads = faulted_reads_during(camera, 2s);
+    EXPECT_LE(reads, 40);
+    EXPECT_GE(reads, 2);
+    EXPECT_EQ(camera.counters().faults, 1U + static_cast<std::uint64_t>(reads));
+    EXPECT_EQ(camera.counters().reopens, 0U);
+    // A zero wait still returns at once: kFault, after at most one failed reopen attempt.
+    hal::RgbdFrame frame;
+    const auto start = std::chrono::steady_clock::now();
+    EXPECT_EQ(camera.read(frame, 0ms), hal::ReadStatus::kFault);
+    EXPECT_LT(std::chrono::steady_clock::now() - start, kFaultWait);
+    camera.close();
+  }
+  std::filesystem::remove_all(files.dir);
+}
+
 TEST(OpenNI2CameraFileFault, TruncatedToZeroUnderThePlaybackEndsInFault) {
   const FaultFiles files = record_long_take("oni_emptied");
   OpenNI2Camera camera(playback_options(files.take));
