@@ -6,6 +6,7 @@
 #include <opencv2/imgproc.hpp>
 
 #include <dlfcn.h>
+#include <time.h>
 
 #include <algorithm>
 #include <array>
@@ -24,8 +25,15 @@ namespace rankslam::openni2 {
 namespace {
 
 constexpr std::int64_t kNsPerUs = 1000;
+constexpr std::int64_t kNsPerS = 1'000'000'000;
 
 std::int64_t monotonic_ns() { return hal::MonotonicClock{}.now_ns(); }
+
+// Sleeps until monotonic_ns() reaches `until_ns`; false when a signal ended the sleep early.
+bool sleep_until_ns(std::int64_t until_ns) {
+  const timespec until{.tv_sec = until_ns / kNsPerS, .tv_nsec = until_ns % kNsPerS};
+  return clock_nanosleep(CLOCK_MONOTONIC, TIMER_ABSTIME, &until, nullptr) == 0;
+}
 
 std::string last_error() {
   const char* text = openni::OpenNI::getExtendedError();
@@ -130,6 +138,9 @@ struct OpenNI2Camera::State : openni::OpenNI::DeviceDisconnectedListener,
   std::string open_device();
   void close_device();
   bool ensure_open();
+  /// While faulted: sleeps until the next reopen attempt is due or `deadline_ns`, whichever is
+  /// first, and makes that attempt. True when the device is open again.
+  bool wait_for_reopen(std::int64_t deadline_ns);
   hal::ReadStatus fault();
   /// Copies a frame into the pending image of its stream; false when unusable.
   bool take(openni::SensorType type, const openni::VideoFrameRef& frame, cv::Mat& image);
@@ -417,6 +428,18 @@ bool OpenNI2Camera::State::ensure_open() {
   return true;
 }
 
+bool OpenNI2Camera::State::wait_for_reopen(std::int64_t deadline_ns) {
+  if (!opened) return false;  // never opened or closed: waiting changes nothing
+  const std::int64_t now = monotonic_ns();
+  if (now >= deadline_ns) return false;
+  const std::int64_t interval_ns = std::chrono::duration_cast<std::chrono::nanoseconds>(options.reopen_interval).count();
+  std::int64_t due_ns = options.reopen_after_fault ? last_reopen_attempt_ns + interval_ns : deadline_ns;
+  // An attempt that failed just now with a zero (or shorter than itself) interval: one per read.
+  if (due_ns <= now) due_ns = deadline_ns;
+  if (!sleep_until_ns(std::min(due_ns, deadline_ns)) || due_ns >= deadline_ns) return false;
+  return ensure_open();
+}
+
 hal::ReadStatus OpenNI2Camera::State::fault() {
   close_device();
   last_reopen_attempt_ns = monotonic_ns();
@@ -545,13 +568,14 @@ bool OpenNI2Camera::is_open() const { return state_->streaming; }
 
 hal::ReadStatus OpenNI2Camera::read(hal::RgbdFrame& frame, std::chrono::milliseconds wait) {
   State& s = *state_;
-  if (!s.ensure_open()) {
-    ++s.counters.faults;
-    return hal::ReadStatus::kFault;
-  }
   const std::int64_t wait_ns =
       std::chrono::duration_cast<std::chrono::nanoseconds>(std::max(wait, std::chrono::milliseconds{0})).count();
   const std::int64_t deadline_ns = monotonic_ns() + wait_ns;
+  // A lasting fault waits out `wait` (or until a reopen is due) so that callers' read loops do not spin.
+  if (!s.ensure_open() && !s.wait_for_reopen(deadline_ns)) {
+    ++s.counters.faults;
+    return hal::ReadStatus::kFault;
+  }
   const std::int64_t gap_ns = std::chrono::duration_cast<std::chrono::nanoseconds>(s.options.max_pair_gap).count();
   const std::int64_t stall_ns = std::chrono::duration_cast<std::chrono::nanoseconds>(s.options.stall_timeout).count();
   for (;;) {

@@ -30,6 +30,12 @@ std::int64_t monotonic_ns() {
   return static_cast<std::int64_t>(now.tv_sec) * kNsPerS + now.tv_nsec;
 }
 
+// Sleeps until monotonic_ns() reaches `until_ns`; false when a signal ended the sleep early.
+bool sleep_until_ns(std::int64_t until_ns) {
+  const timespec until{.tv_sec = until_ns / kNsPerS, .tv_nsec = until_ns % kNsPerS};
+  return clock_nanosleep(CLOCK_MONOTONIC, TIMER_ABSTIME, &until, nullptr) == 0;
+}
+
 int xioctl(int fd, unsigned long request, void* argument) {
   int result = 0;
   do {
@@ -231,6 +237,19 @@ bool V4l2Camera::ensure_open() {
   return true;
 }
 
+bool V4l2Camera::wait_for_reopen(std::int64_t deadline_ns) {
+  if (!opened_) return false;  // never opened or closed: waiting changes nothing
+  const std::int64_t now = monotonic_ns();
+  if (now >= deadline_ns) return false;
+  const std::int64_t interval_ns =
+      std::chrono::duration_cast<std::chrono::nanoseconds>(options_.reopen_interval).count();
+  std::int64_t due_ns = options_.reopen_after_fault ? last_reopen_attempt_ns_ + interval_ns : deadline_ns;
+  // An attempt that failed just now with a zero (or shorter than itself) interval: one per read.
+  if (due_ns <= now) due_ns = deadline_ns;
+  if (!sleep_until_ns(std::min(due_ns, deadline_ns)) || due_ns >= deadline_ns) return false;
+  return ensure_open();
+}
+
 hal::ReadStatus V4l2Camera::fault() {
   close_device();
   ++counters_.faults;
@@ -245,13 +264,14 @@ bool V4l2Camera::convert(std::uint32_t index, std::uint32_t bytes_used) {
 }
 
 hal::ReadStatus V4l2Camera::read(hal::ImageFrame& frame, std::chrono::milliseconds wait) {
-  if (!ensure_open()) {
-    ++counters_.faults;
-    return hal::ReadStatus::kFault;
-  }
   const std::int64_t wait_ns =
       std::chrono::duration_cast<std::chrono::nanoseconds>(std::max(wait, std::chrono::milliseconds{0})).count();
   const std::int64_t deadline_ns = monotonic_ns() + wait_ns;
+  // A lasting fault waits out `wait` (or until a reopen is due) so that callers' read loops do not spin.
+  if (!ensure_open() && !wait_for_reopen(deadline_ns)) {
+    ++counters_.faults;
+    return hal::ReadStatus::kFault;
+  }
   for (;;) {
     v4l2_buffer buffer{};
     buffer.type = V4L2_BUF_TYPE_VIDEO_CAPTURE;

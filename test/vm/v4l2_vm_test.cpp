@@ -404,6 +404,53 @@ TEST_F(V4l2Vm, DisconnectIsAFaultAndTheCameraReopensOnReconnect) {
   EXPECT_EQ(frame.image.cols, 640);
 }
 
+TEST_F(V4l2Vm, WhileUnpluggedReadsSleepInsteadOfSpinning) {
+  // 0 ms: a reopen at every read; 400 ms: some reads wake early for a due reopen attempt.
+  for (const auto interval : {0ms, 400ms}) {
+    SCOPED_TRACE("reopen_interval " + std::to_string(interval.count()) + " ms");
+    V4l2Options unplugged = options();
+    unplugged.reopen_interval = interval;
+    V4l2Camera camera(unplugged);
+    ASSERT_EQ(camera.open(), "");
+    hal::ImageFrame frame;
+    ASSERT_EQ(camera.read(frame, 3000ms), ReadStatus::kOk);
+    DeviceHandle control(device_);
+    ASSERT_GE(control.fd, 0);
+    const auto disconnect = find_control(control.fd, "Disconnect");
+    ASSERT_TRUE(disconnect.has_value()) << "vivid has no Disconnect control";
+    ASSERT_TRUE(press_button(control.fd, *disconnect)) << std::strerror(errno);
+    ReadStatus status = ReadStatus::kOk;
+    for (int i = 0; i < 100 && status == ReadStatus::kOk; ++i) status = camera.read(frame, 1000ms);
+    ASSERT_EQ(status, ReadStatus::kFault);
+
+    // vivid stays unplugged while `control` is open: every reopen fails. Each read sleeps until
+    // its wait ends or a reopen attempt is due: ~8-13 in 2 s; a read returning at once: thousands.
+    int reads = 0;
+    const auto end = std::chrono::steady_clock::now() + 2s;
+    while (std::chrono::steady_clock::now() < end) {
+      EXPECT_EQ(camera.read(frame, 250ms), ReadStatus::kFault) << "read " << reads;
+      ++reads;
+    }
+    std::printf("reopen_interval %lld ms: %d reads of 250 ms in 2 s while unplugged\n",
+                static_cast<long long>(interval.count()), reads);
+    EXPECT_LE(reads, 40);
+    EXPECT_GE(reads, 2);
+    EXPECT_EQ(camera.counters().faults, 1U + static_cast<std::uint64_t>(reads));
+    EXPECT_EQ(camera.counters().reopens, 0U);
+    // A zero wait still returns at once.
+    const auto start = std::chrono::steady_clock::now();
+    EXPECT_EQ(camera.read(frame, 0ms), ReadStatus::kFault);
+    EXPECT_LT(std::chrono::steady_clock::now() - start, 250ms);
+
+    // Plugged back: a read waiting for the due reopen attempt gets a frame.
+    control.reset();
+    status = ReadStatus::kFault;
+    for (int i = 0; i < 5 && status != ReadStatus::kOk; ++i) status = camera.read(frame, 3000ms);
+    EXPECT_EQ(status, ReadStatus::kOk) << hal::to_string(status);
+    EXPECT_EQ(camera.counters().reopens, 1U);
+  }
+}
+
 TEST_F(V4l2Vm, SteadyStateCaptureAllocatesNothing) {
   V4l2Camera camera(options(25));
   ASSERT_EQ(camera.open(), "");

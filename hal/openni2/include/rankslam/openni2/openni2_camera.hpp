@@ -94,7 +94,15 @@ struct OpenNI2Counters {
 /// CLOCK_MONOTONIC: the offset between device and host clock is the smallest arrival delay seen,
 /// so transport jitter does not enter the stamps. A device that disappears (OpenNI2's
 /// disconnect or error event), fails, or stalls makes read() return kFault and closes it; later
-/// reads reopen it at most every reopen_interval.
+/// reads reopen it at most every reopen_interval. Until one succeeds, each read sleeps until an
+/// attempt is due or its `wait` ends and returns kFault, so a caller's read loop does not spin.
+/// A recording that is truncated or overwritten under the playback ends in kFault (the file
+/// device goes silent); one deleted or replaced by a new file plays on to its end, as the file
+/// device keeps the old file open.
+///
+/// OpenNI2 is initialised once per process and never shut down here. Other code may pair its own
+/// openni::OpenNI::initialize() and shutdown(); an unbalanced shutdown() frees this camera's
+/// streams inside libOpenNI2, and its next read() crashes there.
 ///
 /// One thread at a time.
 class OpenNI2Camera final : public hal::DepthCamera {

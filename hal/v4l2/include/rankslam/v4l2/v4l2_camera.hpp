@@ -79,7 +79,9 @@ struct V4l2Counters {
 /// read() overwrites it. stamp_ns is the device's CLOCK_MONOTONIC capture stamp
 /// (v4l2_buffer.timestamp); a device with other stamps is stamped at dequeue and counted.
 /// A device that fails or disappears (ENODEV, EIO, POLLERR) makes read() return kFault and
-/// closes the device; later reads reopen it when reopen_after_fault is set.
+/// closes the device; later reads reopen it when reopen_after_fault is set. Until a reopen
+/// succeeds, each read sleeps until an attempt is due or its `wait` ends and returns kFault, so
+/// a caller's read loop does not spin.
 ///
 /// One thread at a time.
 class V4l2Camera final : public hal::Camera {
@@ -115,6 +117,9 @@ class V4l2Camera final : public hal::Camera {
   std::string open_device();
   void close_device();
   bool ensure_open();
+  /// While faulted: sleeps until the next reopen attempt is due or `deadline_ns`, whichever is
+  /// first, and makes that attempt. True when the device is open again.
+  bool wait_for_reopen(std::int64_t deadline_ns);
   hal::ReadStatus fault();
   /// Converts a dequeued buffer into image_; false when the frame is unusable.
   bool convert(std::uint32_t index, std::uint32_t bytes_used);
