@@ -1,12 +1,13 @@
 #include "rankslam/openni2/openni2_camera.hpp"
 
+#include "rankslam/hal/reopen_wait.hpp"
+
 #include <OpenNI.h>
 
 #include <opencv2/core.hpp>
 #include <opencv2/imgproc.hpp>
 
 #include <dlfcn.h>
-#include <time.h>
 
 #include <algorithm>
 #include <array>
@@ -25,15 +26,8 @@ namespace rankslam::openni2 {
 namespace {
 
 constexpr std::int64_t kNsPerUs = 1000;
-constexpr std::int64_t kNsPerS = 1'000'000'000;
 
 std::int64_t monotonic_ns() { return hal::MonotonicClock{}.now_ns(); }
-
-// Sleeps until monotonic_ns() reaches `until_ns`; false when a signal ended the sleep early.
-bool sleep_until_ns(std::int64_t until_ns) {
-  const timespec until{.tv_sec = until_ns / kNsPerS, .tv_nsec = until_ns % kNsPerS};
-  return clock_nanosleep(CLOCK_MONOTONIC, TIMER_ABSTIME, &until, nullptr) == 0;
-}
 
 std::string last_error() {
   const char* text = openni::OpenNI::getExtendedError();
@@ -430,14 +424,7 @@ bool OpenNI2Camera::State::ensure_open() {
 
 bool OpenNI2Camera::State::wait_for_reopen(std::int64_t deadline_ns) {
   if (!opened) return false;  // never opened or closed: waiting changes nothing
-  const std::int64_t now = monotonic_ns();
-  if (now >= deadline_ns) return false;
-  const std::int64_t interval_ns = std::chrono::duration_cast<std::chrono::nanoseconds>(options.reopen_interval).count();
-  std::int64_t due_ns = options.reopen_after_fault ? last_reopen_attempt_ns + interval_ns : deadline_ns;
-  // An attempt that failed just now with a zero (or shorter than itself) interval: one per read.
-  if (due_ns <= now) due_ns = deadline_ns;
-  if (!sleep_until_ns(std::min(due_ns, deadline_ns)) || due_ns >= deadline_ns) return false;
-  return ensure_open();
+  return hal::sleep_until_reopen_due(last_reopen_attempt_ns, options.reopen_interval, options.reopen_after_fault, deadline_ns) && ensure_open();
 }
 
 hal::ReadStatus OpenNI2Camera::State::fault() {

@@ -1,5 +1,7 @@
 #include "rankslam/v4l2/v4l2_camera.hpp"
 
+#include "rankslam/hal/reopen_wait.hpp"
+
 #include "rankslam/v4l2/frame_conversion.hpp"
 
 #include <opencv2/core.hpp>
@@ -28,12 +30,6 @@ std::int64_t monotonic_ns() {
   timespec now{};
   clock_gettime(CLOCK_MONOTONIC, &now);
   return static_cast<std::int64_t>(now.tv_sec) * kNsPerS + now.tv_nsec;
-}
-
-// Sleeps until monotonic_ns() reaches `until_ns`; false when a signal ended the sleep early.
-bool sleep_until_ns(std::int64_t until_ns) {
-  const timespec until{.tv_sec = until_ns / kNsPerS, .tv_nsec = until_ns % kNsPerS};
-  return clock_nanosleep(CLOCK_MONOTONIC, TIMER_ABSTIME, &until, nullptr) == 0;
 }
 
 int xioctl(int fd, unsigned long request, void* argument) {
@@ -239,15 +235,7 @@ bool V4l2Camera::ensure_open() {
 
 bool V4l2Camera::wait_for_reopen(std::int64_t deadline_ns) {
   if (!opened_) return false;  // never opened or closed: waiting changes nothing
-  const std::int64_t now = monotonic_ns();
-  if (now >= deadline_ns) return false;
-  const std::int64_t interval_ns =
-      std::chrono::duration_cast<std::chrono::nanoseconds>(options_.reopen_interval).count();
-  std::int64_t due_ns = options_.reopen_after_fault ? last_reopen_attempt_ns_ + interval_ns : deadline_ns;
-  // An attempt that failed just now with a zero (or shorter than itself) interval: one per read.
-  if (due_ns <= now) due_ns = deadline_ns;
-  if (!sleep_until_ns(std::min(due_ns, deadline_ns)) || due_ns >= deadline_ns) return false;
-  return ensure_open();
+  return hal::sleep_until_reopen_due(last_reopen_attempt_ns_, options_.reopen_interval, options_.reopen_after_fault, deadline_ns) && ensure_open();
 }
 
 hal::ReadStatus V4l2Camera::fault() {
