@@ -55,6 +55,12 @@ void PoseOutput::run(const std::atomic<bool>& stop) {
 }
 
 void PoseOutput::step() {
+  // Wheel frames already queued first (a base's burst after a stall), so a due cycle carries
+  // the newest odometry, not the one of the frame before; bounded to keep the cycle on time.
+  hal::CanFrame frame;
+  for (int i = 0; i < options_.max_queued_frames_per_step && bus_.receive(frame, std::chrono::milliseconds{0}) == hal::ReadStatus::kOk; ++i) {
+    take_in(frame);
+  }
   mailbox_.deliver(broadcaster_, sample_wheel_stamp_ns_);
   if (sample_wheel_stamp_ns_) {
     // The pose cycles move the latest SLAM pose on by the wheels since its camera frame.
@@ -64,7 +70,6 @@ void PoseOutput::step() {
   const std::int64_t wait_ns = broadcaster_.poll();
   // Wait for the next due frame inside receive(), which also collects wheel frames.
   const auto wait = std::min(std::chrono::milliseconds(wait_ns / 1'000'000), options_.max_wait);
-  hal::CanFrame frame;
   const hal::ReadStatus status = bus_.receive(frame, wait);
   if (status == hal::ReadStatus::kOk) {
     take_in(frame);

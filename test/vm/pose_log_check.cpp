@@ -333,7 +333,17 @@ int main(int argc, char** argv) {
     if (propagation_m > 0.001) ++propagated_cycles;
     largest_propagation_m = std::max(largest_propagation_m, propagation_m);
     const nav::PlanarPose expected_pose = nav::to_planar_pose(expected);
-    max_position_m = std::max(max_position_m, (T_map_base.translation() - expected.translation()).norm());
+    const double position_m = (T_map_base.translation() - expected.translation()).norm();
+    if (position_m > max_position_m && position_m > 0.001) {
+      // The worst cycle so far, for the log: what it sent against what the bus showed before it.
+      std::printf("cycle at %.3f s naming frame %zu (stamp %.3f s): %.1f mm from the nearest expected pose, %.1f mm from the "
+                  "frame's; newest wheel frame on the bus #%ld (stamp %.3f s), %zu candidates\n",
+                  static_cast<double>(cycle.stamp_ns - cycles.front().stamp_ns) * 1e-9, index, ref[index].stamp_s,
+                  position_m * 1e3, (T_map_base.translation() - at_frame.translation()).norm() * 1e3, cycle.newest_wheel,
+                  cycle.newest_wheel >= 0 ? static_cast<double>(recorded[static_cast<std::size_t>(cycle.newest_wheel)].stamp_ns) * 1e-9 : 0.0,
+                  candidates.size());
+    }
+    max_position_m = std::max(max_position_m, position_m);
     max_rotation_deg = std::max(max_rotation_deg, rotation_angle_deg(T_map_base, expected));
     max_yaw_deg = std::max(max_yaw_deg, yaw_difference_deg(decoded.yaw_deg, expected_pose.yaw_deg));
     ++compared;

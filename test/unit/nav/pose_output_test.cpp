@@ -5,6 +5,7 @@
 #include <gtest/gtest.h>
 
 #include <deque>
+#include <numbers>
 #include <vector>
 
 namespace rankslam::nav {
@@ -115,6 +116,32 @@ TEST(PoseOutput, SendsThePostedPoseAtItsRate) {
   output.step();
   EXPECT_EQ(output.pose_counters().pose_cycles, cycles + 1);
   EXPECT_FALSE(f.bus.sent.empty());
+}
+
+TEST(PoseOutput, ADueCycleCarriesTheWheelFramesAlreadyQueued) {
+  Fixture f;
+  hal::WheelGeometry geometry;
+  f.wheels.enable({}, geometry, Eigen::Isometry3d::Identity(), nullptr);
+  PoseOutput output(f.options, f.bus, f.clock, f.mailbox, f.wheels);
+  f.bus.inbox = {wheel_frame(0, 0, 10'000'000)};
+  f.drain(output);
+  PoseSample sample;
+  sample.capture_ns = f.clock.now;
+  f.mailbox.post(sample, nullptr, std::int64_t{10'000'000});
+  f.clock.now += 1'000'000'000;  // a cycle is due
+  // A burst the base sent while the output did not run: ten frames, 10 ticks each, queued.
+  for (std::uint8_t i = 1; i <= 10; ++i) {
+    f.bus.inbox.push_back(wheel_frame(10U * i, i, 10'000'000 + 10'000'000 * static_cast<std::int64_t>(i)));
+  }
+  f.bus.sent.clear();
+  output.step();
+  // The cycle sent in this step is moved on by all ten frames, as the burst's last one says.
+  ASSERT_GE(f.bus.sent.size(), 5U);
+  const auto xy_yaw = decode_pose_xy_yaw(f.bus.sent.front());
+  ASSERT_TRUE(xy_yaw);
+  const double expected_m = 100.0 * 2.0 * std::numbers::pi * geometry.radius_m / geometry.ticks_per_revolution;
+  EXPECT_NEAR(xy_yaw->x_m, expected_m, 0.0015) << "the cycle went out before the queued wheel frames were taken in";
+  EXPECT_TRUE(f.bus.inbox.empty());
 }
 
 TEST(PoseMailbox, ASampleOverwrittenBeforeDeliveryKeepsItsCorrection) {

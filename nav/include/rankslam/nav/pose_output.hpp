@@ -50,6 +50,8 @@ struct PoseOutputOptions {
   std::uint32_t wheel_can_id = hal::WheelGeometry{}.can_id;
   /// Longest wait inside receive() between two due frames, so the mailbox is looked at often.
   std::chrono::milliseconds max_wait{20};
+  /// Frames already queued on the bus taken in before the due frames are sent, at most.
+  int max_queued_frames_per_step = 64;
 };
 
 /// Wheel frames the pose output received from its bus.
@@ -70,8 +72,9 @@ class PoseOutput {
 
   /// Until `stop`: marks the wheels as receiving, then step() after step().
   void run(const std::atomic<bool>& stop);
-  /// One cycle: the mailbox's news to the broadcaster, every due frame sent, then at most one
-  /// frame received, waiting no longer than until the next due frame.
+  /// One cycle: the frames already queued on the bus taken in, the mailbox's news to the
+  /// broadcaster, every due frame sent, then at most one frame received, waiting no longer than
+  /// until the next due frame.
   void step();
 
   [[nodiscard]] const PoseOutputCounters& pose_counters() const { return broadcaster_.counters(); }
