@@ -98,6 +98,17 @@ bool set_control(int fd, std::uint32_t id, std::int32_t value) {
 
 bool press_button(int fd, std::uint32_t id) { return set_control(fd, id, 1); }
 
+// Presses vivid's "Disconnect" through `control` (vivid stays unplugged while it is open) and
+// reads until the camera stops delivering; the status that ended it goes to `status`.
+void unplug(V4l2Camera& camera, hal::ImageFrame& frame, const DeviceHandle& control, ReadStatus& status) {
+  ASSERT_GE(control.fd, 0);
+  const auto disconnect = find_control(control.fd, "Disconnect");
+  ASSERT_TRUE(disconnect.has_value()) << "vivid has no Disconnect control";
+  ASSERT_TRUE(press_button(control.fd, *disconnect)) << std::strerror(errno);
+  status = ReadStatus::kOk;
+  for (int i = 0; i < 100 && status == ReadStatus::kOk; ++i) status = camera.read(frame, 1000ms);
+}
+
 // Busy and total jiffies of all CPUs (/proc/stat), to report how loaded the machine was.
 std::pair<double, double> cpu_jiffies() {
   std::FILE* file = std::fopen("/proc/stat", "r");
@@ -380,15 +391,10 @@ TEST_F(V4l2Vm, DisconnectIsAFaultAndTheCameraReopensOnReconnect) {
   hal::ImageFrame frame;
   ASSERT_EQ(camera.read(frame, 3000ms), ReadStatus::kOk);
 
-  DeviceHandle control(device_);
-  ASSERT_GE(control.fd, 0);
-  const auto disconnect = find_control(control.fd, "Disconnect");
-  ASSERT_TRUE(disconnect.has_value()) << "vivid has no Disconnect control";
-  ASSERT_TRUE(press_button(control.fd, *disconnect)) << std::strerror(errno);
-
   // The camera sees an unplugged device: a fault, not a crash, and no hang.
+  DeviceHandle control(device_);
   ReadStatus status = ReadStatus::kOk;
-  for (int i = 0; i < 100 && status == ReadStatus::kOk; ++i) status = camera.read(frame, 1000ms);
+  ASSERT_NO_FATAL_FAILURE(unplug(camera, frame, control, status));
   EXPECT_EQ(status, ReadStatus::kFault);
   EXPECT_FALSE(camera.is_open());
   EXPECT_EQ(camera.counters().faults, 1U);
@@ -415,12 +421,8 @@ TEST_F(V4l2Vm, WhileUnpluggedReadsSleepInsteadOfSpinning) {
     hal::ImageFrame frame;
     ASSERT_EQ(camera.read(frame, 3000ms), ReadStatus::kOk);
     DeviceHandle control(device_);
-    ASSERT_GE(control.fd, 0);
-    const auto disconnect = find_control(control.fd, "Disconnect");
-    ASSERT_TRUE(disconnect.has_value()) << "vivid has no Disconnect control";
-    ASSERT_TRUE(press_button(control.fd, *disconnect)) << std::strerror(errno);
     ReadStatus status = ReadStatus::kOk;
-    for (int i = 0; i < 100 && status == ReadStatus::kOk; ++i) status = camera.read(frame, 1000ms);
+    ASSERT_NO_FATAL_FAILURE(unplug(camera, frame, control, status));
     ASSERT_EQ(status, ReadStatus::kFault);
 
     // vivid stays unplugged while `control` is open: every reopen fails. Each read sleeps until
