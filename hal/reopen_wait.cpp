@@ -1,5 +1,7 @@
 #include "rankslam/hal/reopen_wait.hpp"
 
+#include "rankslam/hal/interfaces.hpp"
+
 #include <time.h>
 
 #include <algorithm>
@@ -9,17 +11,12 @@ namespace {
 
 constexpr std::int64_t kNsPerS = 1'000'000'000;
 
-std::int64_t monotonic_ns() {
-  timespec now{};
-  clock_gettime(CLOCK_MONOTONIC, &now);
-  return static_cast<std::int64_t>(now.tv_sec) * kNsPerS + now.tv_nsec;
-}
-
 }  // namespace
 
 bool sleep_until_reopen_due(std::int64_t last_attempt_ns, std::chrono::nanoseconds interval, bool reopen,
                             std::int64_t deadline_ns) {
-  const std::int64_t now = monotonic_ns();
+  // MonotonicClock is steady_clock, CLOCK_MONOTONIC on Linux: the clock the sleep below uses.
+  const std::int64_t now = MonotonicClock{}.now_ns();
   if (now >= deadline_ns) return false;
   std::int64_t due_ns = reopen ? last_attempt_ns + interval.count() : deadline_ns;
   // An attempt that failed just now with a zero (or shorter than itself) interval: one per read.
