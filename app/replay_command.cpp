@@ -224,6 +224,7 @@ int run_replay(const ReplayArgs& args) {
 
   eval::JsonWriter json;
   json.begin_object();
+  eval::write_report_header(json, RANKSLAM_VERSION, "replay");
   json.string("recording", recording.root.string());
   json.string("mode", slam::to_string(config.mode));
   json.integer("frames", static_cast<long long>(estimate.size()));

@@ -263,6 +263,7 @@ int run_live(const RunArgs& args) {
 
   eval::JsonWriter json;
   json.begin_object();
+  eval::write_report_header(json, RANKSLAM_VERSION, "run");
   json.string("config", args.config.string());
   json.integer("keyframes", loop.keyframes());
   json.integer("loop_closures", loop.loop_closures());

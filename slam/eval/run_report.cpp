@@ -69,6 +69,12 @@ void write_percentiles(JsonWriter& json, std::string_view key, const Percentiles
   json.begin_object(key).number("median", p.median).number("p90", p.p90).number("max", p.max).end_object();
 }
 
+void write_report_header(JsonWriter& json, std::string_view software_version, std::string_view command) {
+  json.integer("format_version", kReportFormatVersion);
+  json.string("software", "rankslam " + std::string(software_version));
+  json.string("command", command);
+}
+
 FrameRecord frame_record(double stamp_s, const slam::FrameResult& result) {
   return {stamp_s,
           result.status,
@@ -83,12 +89,12 @@ FrameRecord frame_record(double stamp_s, const slam::FrameResult& result) {
 
 std::string frames_csv(const std::vector<FrameRecord>& records) {
   std::string text =
-      "# stamp status inliers prior compared frame_distance_sq window_distance_sq disagree vision_trusted "
-      "wheels_trusted slip_event photometric_matches photometric_inliers geometric_matches geometric_inliers "
-      "photometric_weight forward_residual_m lateral_residual_m yaw_residual_deg height_residual_m tilt_residual_deg\n";
+      "stamp,status,inliers,prior,compared,frame_distance_sq,window_distance_sq,disagree,vision_trusted,"
+      "wheels_trusted,slip_event,photometric_matches,photometric_inliers,geometric_matches,geometric_inliers,"
+      "photometric_weight,forward_residual_m,lateral_residual_m,yaw_residual_deg,height_residual_m,tilt_residual_deg\n";
   char line[320];
   for (const FrameRecord& r : records) {
-    std::snprintf(line, sizeof line, "%.6f %s %d %d %d %.3f %.3f %d %d %d %d %d %d %d %d %.3f %.5f %.5f %.4f %.5f %.4f\n", r.stamp_s,
+    std::snprintf(line, sizeof line, "%.6f,%s,%d,%d,%d,%.3f,%.3f,%d,%d,%d,%d,%d,%d,%d,%d,%.3f,%.5f,%.5f,%.4f,%.5f,%.4f\n", r.stamp_s,
                   std::string(slam::to_string(r.status)).c_str(), r.inliers, r.wheels.prior_given ? 1 : 0,
                   r.wheels.compared ? 1 : 0, r.wheels.frame_distance_sq, r.wheels.window_distance_sq,
                   r.wheels.disagree ? 1 : 0, r.wheels.vision_trusted ? 1 : 0, r.wheels.wheels_trusted ? 1 : 0,
@@ -108,8 +114,8 @@ bool is_false_closure(const RelativePoseError& error) {
 std::string loop_closures_csv(const std::vector<slam::LoopClosure>& closures,
                               const std::vector<RelativePoseError>& errors) {
   std::string text =
-      "# stored_stamp current_stamp tx ty tz qx qy qz qw photometric_inliers geometric_inliers threshold "
-      "gt_translation_error_m gt_rotation_error_deg false_closure\n";
+      "stored_stamp,current_stamp,tx,ty,tz,qx,qy,qz,qw,photometric_inliers,geometric_inliers,threshold,"
+      "gt_translation_error_m,gt_rotation_error_deg,false_closure\n";
   char line[384];
   for (std::size_t i = 0; i < closures.size(); ++i) {
     const slam::LoopClosure& c = closures[i];
@@ -117,15 +123,15 @@ std::string loop_closures_csv(const std::vector<slam::LoopClosure>& closures,
     Eigen::Quaterniond q(c.T_stored_current.linear());
     if (q.w() < 0.0) q.coeffs() = -q.coeffs();
     const RelativePoseError* error = i < errors.size() && errors[i].has_ground_truth ? &errors[i] : nullptr;
-    std::snprintf(line, sizeof line, "%.6f %.6f %.6f %.6f %.6f %.6f %.6f %.6f %.6f %d %d %.1f ", c.stored_stamp_s,
+    std::snprintf(line, sizeof line, "%.6f,%.6f,%.6f,%.6f,%.6f,%.6f,%.6f,%.6f,%.6f,%d,%d,%.1f,", c.stored_stamp_s,
                   c.current_stamp_s, t.x(), t.y(), t.z(), q.x(), q.y(), q.z(), q.w(), c.photometric_inliers,
                   c.geometric_inliers, c.threshold);
     text += line;
     if (error != nullptr) {
-      std::snprintf(line, sizeof line, "%.4f %.3f %d\n", error->translation_m, error->rotation_deg,
+      std::snprintf(line, sizeof line, "%.4f,%.3f,%d\n", error->translation_m, error->rotation_deg,
                     is_false_closure(*error) ? 1 : 0);
     } else {
-      std::snprintf(line, sizeof line, "nan nan nan\n");
+      std::snprintf(line, sizeof line, ",,\n");  // no ground truth: empty fields
     }
     text += line;
   }

@@ -166,14 +166,15 @@ std::optional<ReportSummary> summarize_report(const std::optional<std::string>& 
   return summary;
 }
 
-/// The stamps (first column) of the non-comment lines of a TUM trajectory or frames.csv.
+/// The stamps (first column) of the records of a TUM trajectory or frames.csv (comments and the
+/// CSV header skipped).
 std::vector<std::string> stamps(const std::string& text) {
   std::vector<std::string> result;
   std::istringstream in(text);
   std::string line;
   while (std::getline(in, line)) {
-    if (line.empty() || line[0] == '#') continue;
-    result.push_back(line.substr(0, line.find(' ')));
+    if (line.empty() || line[0] == '#' || line.rfind("stamp,", 0) == 0) continue;
+    result.push_back(line.substr(0, line.find_first_of(" ,")));
   }
   return result;
 }

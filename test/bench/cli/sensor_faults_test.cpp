@@ -20,6 +20,7 @@
 #include <sys/wait.h>
 #include <unistd.h>
 
+#include <algorithm>
 #include <array>
 #include <cmath>
 #include <cstdio>
@@ -141,8 +142,10 @@ struct FrameRow {
 std::vector<FrameRow> frames_csv(const fs::path& out) {
   std::vector<FrameRow> rows;
   for (const std::string& line : lines_of(out / "frames.csv")) {
-    if (line.empty() || line[0] == '#') continue;
-    const std::vector<std::string> fields = fields_of(line);
+    if (line.empty() || line.rfind("stamp,", 0) == 0) continue;
+    std::string spaced = line;
+    std::replace(spaced.begin(), spaced.end(), ',', ' ');
+    const std::vector<std::string> fields = fields_of(spaced);
     if (fields.size() < 2) continue;
     rows.push_back({std::stod(fields[0]), fields[1]});
   }

@@ -2,6 +2,8 @@
 
 #include <gtest/gtest.h>
 
+#include <sstream>
+
 namespace rankslam::eval {
 namespace {
 
@@ -27,16 +29,59 @@ TEST(RunReport, PercentilesTakeTheNearestRank) {
   EXPECT_EQ(none.max, 0.0);
 }
 
-TEST(RunReport, FramesCsvHasOneLinePerFrameAfterItsHeader) {
+TEST(RunReport, FramesCsvIsCommaSeparatedWithOneHeaderLine) {
   slam::FrameResult result;
   result.status = slam::FrameStatus::kTracking;
   result.inliers = 42;
-  const std::string csv = frames_csv({frame_record(1.5, result)});
-  ASSERT_EQ(csv.rfind("# stamp status inliers prior", 0), 0U);
-  const std::string line = csv.substr(csv.find('\n') + 1);
-  EXPECT_EQ(line.rfind("1.500000 " + std::string(slam::to_string(slam::FrameStatus::kTracking)) + " 42 0 0 ", 0), 0U)
-      << line;
-  EXPECT_EQ(std::count(csv.begin(), csv.end(), '\n'), 2);
+  const std::string csv = frames_csv({frame_record(1.5, result), frame_record(1.6, result)});
+  ASSERT_EQ(csv.rfind("stamp,status,inliers,prior,", 0), 0U);
+  std::istringstream in(csv);
+  std::string header;
+  std::getline(in, header);
+  const auto columns = std::count(header.begin(), header.end(), ',') + 1;
+  EXPECT_EQ(header.find(' '), std::string::npos);
+  int records = 0;
+  for (std::string line; std::getline(in, line); ++records) {
+    EXPECT_EQ(std::count(line.begin(), line.end(), ',') + 1, columns) << line;
+    EXPECT_EQ(line.find(' '), std::string::npos) << line;
+  }
+  EXPECT_EQ(records, 2);
+  const std::string first = csv.substr(csv.find('\n') + 1);
+  EXPECT_EQ(first.rfind("1.500000," + std::string(slam::to_string(slam::FrameStatus::kTracking)) + ",42,0,0,", 0), 0U)
+      << first;
+}
+
+TEST(RunReport, LoopClosuresCsvLeavesTheErrorFieldsEmptyWithoutGroundTruth) {
+  slam::LoopClosure closure;
+  closure.stored_stamp_s = 1.0;
+  closure.current_stamp_s = 9.0;
+  closure.T_stored_current = Eigen::Isometry3d::Identity();
+  RelativePoseError off;
+  off.has_ground_truth = true;
+  off.translation_m = 0.5;
+  const std::string csv = loop_closures_csv({closure, closure}, {RelativePoseError{}, off});
+  std::istringstream in(csv);
+  std::string header, without, with;
+  std::getline(in, header);
+  std::getline(in, without);
+  std::getline(in, with);
+  ASSERT_EQ(header.rfind("stored_stamp,current_stamp,", 0), 0U);
+  const auto columns = std::count(header.begin(), header.end(), ',');
+  EXPECT_EQ(std::count(without.begin(), without.end(), ','), columns) << without;
+  EXPECT_EQ(std::count(with.begin(), with.end(), ','), columns) << with;
+  EXPECT_EQ(without.substr(without.size() - 3), ",,,") << without;
+  EXPECT_EQ(with.substr(with.size() - 2), ",1") << with;
+}
+
+TEST(RunReport, TheHeaderGivesTheFormatAndSoftwareVersions) {
+  JsonWriter json;
+  json.begin_object();
+  write_report_header(json, "1.2.3", "replay");
+  json.end_object();
+  const std::string text = json.str();
+  EXPECT_NE(text.find("\"format_version\": " + std::to_string(kReportFormatVersion)), std::string::npos) << text;
+  EXPECT_NE(text.find("\"software\": \"rankslam 1.2.3\""), std::string::npos) << text;
+  EXPECT_NE(text.find("\"command\": \"replay\""), std::string::npos) << text;
 }
 
 TEST(RunReport, AClosureIsFalseBeyondAQuarterMetreOrTenDegrees) {

@@ -22,6 +22,13 @@ struct StatusCounts {
   void add(const slam::FrameResult& result);
 };
 
+/// report.json's layout version: raised when a key changes meaning or goes, not when one is added.
+inline constexpr int kReportFormatVersion = 1;
+
+/// The first report.json entries of every command: `format_version`, `software`
+/// ("rankslam <version>") and `command`.
+void write_report_header(JsonWriter& json, std::string_view software_version, std::string_view command);
+
 /// The report.json entries `replay` and `run` share: `status_counts`, and how the wheels fared
 /// (`wheels` null when they were not used, for `wheels_off_reason`).
 void write_status_and_wheels(JsonWriter& json, const StatusCounts& counts, const nav::WheelPrior* wheels,
@@ -55,14 +62,16 @@ struct FrameRecord {
 /// The frames.csv line of a processed frame.
 [[nodiscard]] FrameRecord frame_record(double stamp_s, const slam::FrameResult& result);
 
-/// Per-frame status and how vision compared with the wheels, for plots and checks.
+/// Per-frame status and how vision compared with the wheels, for plots and checks: CSV
+/// (RFC 4180: comma-separated, one header line naming the columns).
 [[nodiscard]] std::string frames_csv(const std::vector<FrameRecord>& records);
 
 /// Whether a loop closure's measured relative pose is farther from the ground truth's than a
 /// correct closure ever is: it joined two places that are not where the graph now puts them.
 [[nodiscard]] bool is_false_closure(const RelativePoseError& error);
 
-/// Each accepted loop closure, with its error against the ground truth where there is one.
+/// Each accepted loop closure, with its error against the ground truth where there is one (empty
+/// fields where there is none); CSV as frames_csv.
 [[nodiscard]] std::string loop_closures_csv(const std::vector<slam::LoopClosure>& closures,
                                             const std::vector<RelativePoseError>& errors);
 
