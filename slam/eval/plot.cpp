@@ -39,11 +39,14 @@ constexpr int kFont = cv::FONT_HERSHEY_SIMPLEX;
 constexpr double kLabelScale = 0.4;
 constexpr double kLegendScale = 0.5;
 
-std::vector<Eigen::Vector3d> finite_positions_by_stamp(const Trajectory& trajectory) {
+std::vector<Eigen::Vector3d> finite_positions_by_stamp(
+    const Trajectory& trajectory, double from_s = -std::numeric_limits<double>::infinity(),
+    double to_s = std::numeric_limits<double>::infinity()) {
   std::vector<const StampedPose*> sorted;
   sorted.reserve(trajectory.size());
   for (const StampedPose& pose : trajectory) {
-    if (std::isfinite(pose.stamp_s) && pose.T_world_cam.translation().allFinite()) {
+    if (std::isfinite(pose.stamp_s) && pose.stamp_s >= from_s && pose.stamp_s <= to_s &&
+        pose.T_world_cam.translation().allFinite()) {
       sorted.push_back(&pose);
     }
   }
@@ -222,8 +225,23 @@ cv::Mat render_top_view(const Trajectory& estimate, const Trajectory* ground_tru
     ate = compute_ate(*ground_truth_or_null, estimate, ate_options);
     if (ate.ok()) shown_estimate = &ate.value().aligned_estimate;
   }
+  // The ground truth over the estimate's span only: a run over part of a recording is drawn
+  // against that part.
+  double from_s = std::numeric_limits<double>::infinity();
+  double to_s = -from_s;
+  for (const StampedPose& pose : estimate) {
+    if (!std::isfinite(pose.stamp_s)) continue;
+    from_s = std::min(from_s, pose.stamp_s);
+    to_s = std::max(to_s, pose.stamp_s);
+  }
+  if (from_s > to_s) {
+    from_s = -std::numeric_limits<double>::infinity();
+    to_s = std::numeric_limits<double>::infinity();
+  }
+  const double slack_s = std::max(options.max_difference_s, 0.0);
   const std::vector<Eigen::Vector3d> truth_xyz =
-      has_truth ? finite_positions_by_stamp(*ground_truth_or_null) : std::vector<Eigen::Vector3d>{};
+      has_truth ? finite_positions_by_stamp(*ground_truth_or_null, from_s - slack_s, to_s + slack_s)
+                : std::vector<Eigen::Vector3d>{};
   const std::vector<Eigen::Vector3d> estimate_xyz = finite_positions_by_stamp(*shown_estimate);
 
   if (options.show_legend) draw_legend(image, options, has_truth, ate.ok());

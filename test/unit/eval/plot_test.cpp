@@ -55,6 +55,26 @@ TEST(TopView, DrawsBothCurvesInTheirColours) {
   EXPECT_GT(cv::countNonZero(pixels_of_colour(image, cv::Scalar(255, 255, 255))), 800 * 800 / 2);
 }
 
+TEST(TopView, OnlyTheGroundTruthOverTheEstimatesSpanIsDrawn) {
+  // A run over the first third of an ellipse: the rest of the ground truth must not be drawn.
+  const Trajectory truth = ellipse(Eigen::Vector3d::Zero(), Eigen::Vector3d::UnitX(), 3.0, Eigen::Vector3d::UnitY(), 2.0);
+  const Trajectory estimate(truth.begin(), truth.begin() + 100);
+  Trajectory truth_of_span;
+  for (const StampedPose& pose : truth) {
+    if (pose.stamp_s >= estimate.front().stamp_s - 0.02 && pose.stamp_s <= estimate.back().stamp_s + 0.02) {
+      truth_of_span.push_back(pose);
+    }
+  }
+  ASSERT_LT(truth_of_span.size(), truth.size());
+  TopViewOptions options;
+  options.max_difference_s = 0.02;
+  const cv::Mat whole = render_top_view(estimate, &truth, options);
+  const cv::Mat span = render_top_view(estimate, &truth_of_span, options);
+  cv::Mat difference;
+  cv::absdiff(whole, span, difference);
+  EXPECT_EQ(cv::countNonZero(difference.reshape(1)), 0);
+}
+
 TEST(TopView, WithoutGroundTruthOnlyTheEstimateIsDrawn) {
   const Trajectory estimate = test::helix(0.0, 15.0, 30.0);
   const cv::Mat image = render_top_view(estimate, nullptr, {});

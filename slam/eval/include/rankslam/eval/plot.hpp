@@ -33,7 +33,8 @@ struct TopViewOptions {
 /// none), so the view is right for TUM's camera-world frame and a robot's base frame alike.
 /// Both image axes have the same scale; the grid is labelled in metres from the mean position.
 /// The estimate is drawn aligned to the ground truth (the ATE alignment) when ground truth is
-/// given and options.align_estimate is set. Start: filled circle; end: cross.
+/// given and options.align_estimate is set; only the ground truth within the estimate's stamps
+/// (± options.max_difference_s) is drawn. Start: filled circle; end: cross.
 /// Returns a CV_8UC3 image with a white background; never fails (empty input gives a labelled
 /// empty plot).
 [[nodiscard]] cv::Mat render_top_view(const Trajectory& estimate,
