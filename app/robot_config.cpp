@@ -32,7 +32,7 @@ std::string read(const YAML::Node& section, const std::string& where, const char
   try {
     value = node.as<T>();
   } catch (const YAML::Exception&) {
-    return where + "." + key + " is not a valid value";
+    return where + "." + key + " is not a valid value" + yaml::at(node.Mark());
   }
   return {};
 }

@@ -68,11 +68,14 @@ std::string load_file(const std::filesystem::path& path, YAML::Node& root) {
 
 std::string check_map(const YAML::Node& node, const std::string& key_path, const std::set<std::string>& known,
                       const std::string& noun) {
-  if (!node.IsMap()) return key_path.empty() ? "expected a map at the top level" : "'" + key_path + "' must be a map";
+  if (!node.IsMap()) {
+    return (key_path.empty() ? "expected a map at the top level" : "'" + key_path + "' must be a map") + at(node.Mark());
+  }
   for (const auto& entry : node) {
     const std::string& name = entry.first.Scalar();
     if (known.contains(name)) continue;
-    return (key_path.empty() ? "'" + name + "'" : key_path + "." + name) + " is not a known " + noun;
+    return (key_path.empty() ? "'" + name + "'" : key_path + "." + name) + " is not a known " + noun +
+           at(entry.first.Mark());
   }
   return {};
 }

@@ -44,7 +44,7 @@ std::string read_array(const YAML::Node& map, const std::string& key, const std:
   if (!field) return path + " is missing";
   if (!field.IsSequence() || field.size() < min_size || field.size() > N) {
     return path + " must be a list of " + std::to_string(min_size) +
-           (min_size == N ? "" : " to " + std::to_string(N)) + " numbers";
+           (min_size == N ? "" : " to " + std::to_string(N)) + " numbers" + yaml::at(field.Mark());
   }
   values.fill(0.0);
   for (std::size_t i = 0; i < field.size(); ++i) {

@@ -98,12 +98,30 @@ TEST_F(CliConfig, UnknownSectionsDuplicateAndComplexKeysAreRejected) {
     SCOPED_TRACE(text);
     expect_input_error(replay(base, dir / "out", "--config " + config.string()), "config.yaml", key);
   };
-  check("slamm:\n  orb_features: 500\n", "'slamm' is not a known section");
-  check("slam:\n  orb_features: 500\n  orb_features: 600\n", "slam.orb_features is given twice");
-  check("slam:\n  orb_features: 500\nslam:\n  min_inliers: 12\n", "slam is given twice");
+  check("slam:\n  orb_features: 500\nslamm:\n  orb_features: 500\n", "'slamm' is not a known section (line 3");
+  check("slam:\n  orb_features: 500\n  orb_features: 600\n", "slam.orb_features is given twice (again at line 3");
+  check("slam:\n  orb_features: 500\nslam:\n  min_inliers: 12\n", "slam is given twice (again at line 3");
   check("slam:\n  ? [a, b]\n  : 1\n", "slam: the key at line 2");
-  check("slam: 5\n", "'slam' must be a map");
-  check("slam:\n  orb_features: [500]\n", "slam.orb_features is not a valid value");
+  check("slam: 5\n", "'slam' must be a map (line 1");
+  check("slam:\n  orb_features: [500]\n", "slam.orb_features is not a valid value: expected a number, not a list (line 2");
+  check("slam:\n\n  orb_features: many\n", "slam.orb_features is not a valid value: 'many' is not a whole number (line 3");
+  check("slam:\n  orb_features: 5000000\n", "slam.orb_features = 5000000 is outside");
+}
+
+TEST_F(CliConfig, RunRejectsMisspeltSectionsDuplicateKeysAndTypeErrorsByFileLineAndKey) {
+  const fs::path& dir = dir_;
+  const std::string robot = "camera: {source: 'replay:rec'}\ncan: {interface: vcan0}\n";
+  const auto check = [&](const std::string& text, const std::string& key) {
+    std::ofstream(dir / "robot.yaml", std::ios::trunc) << robot << text;
+    SCOPED_TRACE(text);
+    expect_input_error(run("run --config " + (dir / "robot.yaml").string() + " --out " + (dir / "out").string()),
+                       "robot.yaml", key);
+  };
+  check("slamm:\n  orb_features: 500\n", "'slamm' is not a known section (line 3");
+  check("slam:\n  orb_features: 500\n  orb_features: 600\n", "slam.orb_features is given twice (again at line 5");
+  check("slam:\n  orb_features: many\n", "slam.orb_features is not a valid value: 'many' is not a whole number (line 4");
+  check("output:\n  wheel_propagation: maybe\n", "output.wheel_propagation is not a valid value (line 4");
+  check("output:\n  pose_rate_hz: 5000\n", "output.pose_rate_hz = 5000 is outside");
 }
 
 TEST_F(CliConfig, DeeplyNestedYamlIsNamedAsInvalidYaml) {

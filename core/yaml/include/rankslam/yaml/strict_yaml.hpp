@@ -20,9 +20,16 @@ namespace rankslam::yaml {
 /// line or the key path.
 [[nodiscard]] std::string load_file(const std::filesystem::path& path, YAML::Node& root);
 
+/// " (line L, column C)" of a node read from a file; empty for a node built in memory.
+[[nodiscard]] inline std::string at(const YAML::Mark& mark) {
+  if (mark.is_null()) return {};
+  return " (line " + std::to_string(mark.line + 1) + ", column " + std::to_string(mark.column + 1) + ")";
+}
+
 /// Why `node`, found at `key_path` (dotted), is not a map whose keys are all in `known`:
 /// "'<key_path>' must be a map" or "<key_path>.<key> is not a known <noun>" ("'<key>' is not a
-/// known <noun>" at the root, key_path empty). Keys are scalars: load_file checked them.
+/// known <noun>" at the root, key_path empty), each followed by where in the file (at()). Keys are
+/// scalars: load_file checked them.
 [[nodiscard]] std::string check_map(const YAML::Node& node, const std::string& key_path,
                                     const std::set<std::string>& known, const std::string& noun = "key");
 
@@ -45,18 +52,19 @@ template <typename T>
   return text.str();
 }
 
-/// Why the scalar `node` is not a number of type T; empty when it is one (then in `parsed`).
+/// Why the scalar `node` is not a number of type T, with where it is; empty when it is one (then
+/// in `parsed`).
 template <typename T>
 [[nodiscard]] std::string parse_number(const YAML::Node& node, const std::string& key_path, T& parsed) {
   if (!node.IsScalar()) {
     const char* found = node.IsMap() ? "a map" : node.IsSequence() ? "a list" : "nothing";
-    return key_path + " is not a valid value: expected a number, not " + found;
+    return key_path + " is not a valid value: expected a number, not " + found + at(node.Mark());
   }
   if (YAML::convert<T>::decode(node, parsed)) return {};
   const char* kind = std::is_floating_point_v<T> ? "a number"
                      : std::is_signed_v<T>       ? "a whole number"
                                                  : "a whole number of 0 or more";
-  return key_path + " is not a valid value: '" + node.Scalar() + "' is not " + kind;
+  return key_path + " is not a valid value: '" + node.Scalar() + "' is not " + kind + at(node.Mark());
 }
 
 /// Reads the scalar `node`, found at `key_path`, as a finite number of type T within [min, max];
@@ -65,7 +73,7 @@ template <typename T>
 [[nodiscard]] std::string read_number(const YAML::Node& node, const std::string& key_path, T min, T max, T& value) {
   T parsed{};
   if (auto error = parse_number(node, key_path, parsed); !error.empty()) return error;
-  if (auto error = check_range(parsed, key_path, min, max); !error.empty()) return error;
+  if (auto error = check_range(parsed, key_path, min, max); !error.empty()) return error + at(node.Mark());
   value = parsed;
   return {};
 }
