@@ -22,6 +22,8 @@ struct ReplayArgs {
   bool no_wheels = false;  ///< Ignore the recording's can.log: the vision-only run.
   /// Decode the next frames while the loop runs (see replay::ReplayOptions::decode_ahead).
   bool decode_ahead = false;
+  /// --frame: "camera", "base" or empty (base when the mounting is known), see OutputFrame.
+  std::string frame;
 };
 
 struct SimulateArgs {
@@ -43,6 +45,7 @@ struct RunArgs {
   std::filesystem::path config;
   std::filesystem::path out;
   std::string mode;
+  std::string frame;  ///< as ReplayArgs::frame
 };
 
 struct RecordArgs {

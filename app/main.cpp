@@ -39,6 +39,8 @@ int main(int argc, char** argv) {
           "0 or 0.001..1000"));
   replay_cmd->add_option("--max-frames", replay.max_frames, "Replay at most this many frames (0 = all)");
   replay_cmd->add_flag("--quiet,-q", replay.quiet, "Print only the summary");
+  replay_cmd->add_option("--frame", replay.frame, "Frame of trajectory.txt and map.ply: base (the map frame of the base, x forward, z up; the default when the calibration gives T_base_cam) or camera (the first camera's optical frame)")
+      ->check(CLI::IsMember({"camera", "base"}));
   replay_cmd->add_flag("--decode-ahead", replay.decode_ahead, "Decode the next frames while the loop runs: a faster replay, but decoding then competes with the loop for the cores and its timings include that (without it, as on the robot, they do not)");
   replay_cmd->add_flag("--no-wheels", replay.no_wheels, "Ignore the recording's can.log: vision only (the wheel odometry is otherwise the motion prior and the fallback)");
 
@@ -64,6 +66,8 @@ int main(int argc, char** argv) {
   run_cmd->add_option("--config,-c", run.config, "Robot configuration (deploy/config/<robot>.yaml)")->required()->check(CLI::ExistingFile);
   run_cmd->add_option("--out,-o", run.out, "Where trajectory and map are flushed on exit");
   run_cmd->add_option("--mode,-m", run.mode, "Registration: baseline, photometric, geometric or fused (default: fused)");
+  run_cmd->add_option("--frame", run.frame, "Frame of trajectory.txt and map.ply: base (default: the map frame of the base, x forward, z up) or camera (the first camera's optical frame)")
+      ->check(CLI::IsMember({"camera", "base"}));
 
   RecordArgs record;
   auto* record_cmd = app.add_subcommand("record", "Record the live sensors (camera, CAN) into a recording directory (TUM layout, see README)");

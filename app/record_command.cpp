@@ -114,7 +114,13 @@ int run_record(const RecordArgs& args) {
   writer_options.write_can = bus != nullptr;
   writer_options.can_interface = robot.can_interface;
   record::RecordingWriter writer(args.out, writer_options);
-  if (auto error = writer.open(camera->calibration()); !error.empty()) {
+  // The configured mounting goes into the recording, so its replay knows the base frame.
+  hal::Calibration calibration = camera->calibration();
+  if (robot.camera_mounting && !calibration.rgb.T_base_cam_given) {
+    calibration.rgb.T_base_cam = *robot.camera_mounting;
+    calibration.rgb.T_base_cam_given = true;
+  }
+  if (auto error = writer.open(calibration); !error.empty()) {
     std::cerr << "error: " << error << "\n";
     return kExitOutput;
   }

@@ -1,5 +1,6 @@
 #include "commands.hpp"
 #include "config_file.hpp"
+#include "output_frame.hpp"
 #include "exit_codes.hpp"
 #include "frame_pipeline.hpp"
 #include "progress.hpp"
@@ -66,6 +67,12 @@ int run_replay(const ReplayArgs& args) {
     return kExitInput;
   }
   for (const auto& warning : recording.warnings) std::cerr << "warning: " << warning << "\n";
+  const hal::CameraCalibration& rgb = recording.calibration.rgb;
+  OutputFrame output_frame = OutputFrame::kCamera;
+  if (auto error = choose_output_frame(args.frame, rgb.T_base_cam_given, output_frame); !error.empty()) {
+    std::cerr << "error: " << recording.calibration.source << ": " << error << "\n";
+    return kExitUsage;
+  }
 
   replay::ReplayOptions options;
   options.rate = args.rate;
@@ -79,6 +86,9 @@ int run_replay(const ReplayArgs& args) {
   if (!args.quiet) {
     std::cout << "recording " << recording.root.string() << ": " << camera.frame_count() << " frames, calibration "
               << recording.calibration.source << "\n"
+              << "camera mounting T_base_cam: "
+              << (rgb.T_base_cam_given ? describe_mounting(rgb.T_base_cam) : std::string("unknown")) << "; outputs in the "
+              << to_string(output_frame) << " frame\n"
               << describe_slam_config(config);
   }
 
@@ -168,8 +178,10 @@ int run_replay(const ReplayArgs& args) {
     std::cerr << "error: " << error << "\n";
     exit_code = kExitOutput;
   };
-  report_error(outputs.add_written("trajectory.txt", [&](const fs::path& path) { return eval::write_tum_trajectory(path, estimate); }));
-  report_error(outputs.add("map.ply", std::string_view(loop.map().to_ply())));
+  report_error(outputs.add_written("trajectory.txt", [&](const fs::path& path) {
+    return eval::write_tum_trajectory(path, in_output_frame(estimate, output_frame, rgb.T_base_cam));
+  }));
+  report_error(outputs.add("map.ply", std::string_view(loop.map().to_ply(output_from_world(output_frame, rgb.T_base_cam)))));
   report_error(outputs.add("frames.csv", std::string_view(eval::frames_csv(pipeline.frame_records()))));
 
   std::optional<eval::EvalResult> accuracy;
@@ -226,6 +238,7 @@ int run_replay(const ReplayArgs& args) {
   json.begin_object();
   eval::write_report_header(json, RANKSLAM_VERSION, "replay");
   json.string("recording", recording.root.string());
+  json.string("output_frame", to_string(output_frame));
   json.string("mode", slam::to_string(config.mode));
   json.integer("frames", static_cast<long long>(estimate.size()));
   json.integer("failed_frames", failed_frames);

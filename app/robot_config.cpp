@@ -3,6 +3,7 @@
 #include "config_file.hpp"
 
 #include "rankslam/hal/thread_priority.hpp"
+#include "rankslam/replay/calibration_file.hpp"
 #include "rankslam/yaml/strict_yaml.hpp"
 
 #include <cstdint>
@@ -18,7 +19,7 @@ namespace {
 // load_pipeline_config's (read_config_file knows them).
 const std::map<std::string, std::set<std::string>> kKeys = {
     {"robot", {"name"}},
-    {"camera", {"source", "replay_rate", "max_frames", "exit_after_end_s", "calibration", "width", "height", "fps", "ir"}},
+    {"camera", {"source", "replay_rate", "max_frames", "exit_after_end_s", "calibration", "mounting", "width", "height", "fps", "ir"}},
     {"can", {"interface", "play_wheel_frames"}},
     {"output", {"pose_rate_hz", "heartbeat_rate_hz", "watchdog_timeout_s", "lost_after_failed_frames", "wheel_propagation", "dir",
                 "max_trajectory_poses", "realtime_priority"}},
@@ -100,6 +101,18 @@ std::string load_robot_config(const std::filesystem::path& path, RobotConfig& co
     config.camera_calibration = calibration;
     if (config.camera_calibration.is_relative()) config.camera_calibration = path.parent_path() / config.camera_calibration;
   }
+  if (const YAML::Node mounting = camera["mounting"]; mounting && error.empty()) {
+    if (mounting.IsMap()) {
+      Eigen::Isometry3d T_base_cam = Eigen::Isometry3d::Identity();
+      if (auto e = replay::read_mounting(mounting, "camera.mounting", T_base_cam); !e.empty()) return file + e;
+      config.camera_mounting = T_base_cam;
+    } else if (mounting.IsScalar() && mounting.Scalar() == "identity") {
+      config.camera_mounting = Eigen::Isometry3d::Identity();
+    } else {
+      return file + "camera.mounting must be identity or {translation: [x, y, z], rotation_xyzw: [x, y, z, w]}" +
+             yaml::at(mounting.Mark());
+    }
+  }
   check(read_number(camera, "camera", "width", 1, 4096, config.camera_width));
   check(read_number(camera, "camera", "height", 1, 4096, config.camera_height));
   check(read_number(camera, "camera", "fps", 1, 240, config.camera_fps));
@@ -143,6 +156,8 @@ std::string describe_robot_config(const RobotConfig& config) {
   text << "camera.source = "
        << (config.camera_source == CameraSource::kReplay ? "replay:" : "openni2:") << config.camera_location << "\n"
        << "camera.calibration = " << config.camera_calibration.string() << "  # openni2: empty = from the field of view\n"
+       << "camera.mounting = " << (config.camera_mounting ? "given" : "from the calibration")
+       << "  # T_base_cam, camera optical frame -> base\n"
        << "camera.mode = " << config.camera_width << "x" << config.camera_height << "@" << config.camera_fps
        << (config.camera_ir ? " + IR" : "") << "  # openni2 only\n"
        << "camera.replay_rate = " << config.replay_rate << "  # x recorded rate, 0 = lossless\n"

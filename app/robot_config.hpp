@@ -2,7 +2,10 @@
 
 #include "rankslam/nav/pose_broadcaster.hpp"
 
+#include <Eigen/Geometry>
+
 #include <filesystem>
+#include <optional>
 #include <set>
 #include <string>
 
@@ -26,6 +29,9 @@ struct RobotConfig {
   /// camera.calibration: calibration.yaml for the OpenNI2 camera (relative to the YAML file);
   /// empty = intrinsics from the device's field of view.
   std::filesystem::path camera_calibration;
+  /// camera.mounting: the camera's T_base_cam (optical frame → base), `identity` or a pose as
+  /// calibration.yaml writes one; nullopt (absent): the calibration must give cameras.rgb.T_base_cam.
+  std::optional<Eigen::Isometry3d> camera_mounting;
   /// camera.width/height/fps: OpenNI2 video mode; camera.ir: also stream IR.
   int camera_width = 640;
   int camera_height = 480;

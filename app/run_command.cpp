@@ -4,6 +4,7 @@
 #include "config_file.hpp"
 #include "exit_codes.hpp"
 #include "frame_pipeline.hpp"
+#include "output_frame.hpp"
 #include "robot_config.hpp"
 #include "stop_signals.hpp"
 #include "wheel_player.hpp"
@@ -81,7 +82,35 @@ int run_live(const RunArgs& args) {
     std::cerr << "error: " << error << "\n";
     return kExitInput;
   }
-  const hal::Calibration& calibration = camera.calibration();
+  // The pose on CAN is the base's: a mounting left to default would put camera axes on the bus.
+  hal::Calibration calibration = camera.calibration();
+  if (robot.camera_mounting && calibration.rgb.T_base_cam_given) {
+    std::cerr << "error: " << args.config.string() << ": camera.mounting is given, and calibration "
+              << calibration.source << " gives cameras.rgb.T_base_cam too; keep one\n";
+    return kExitInput;
+  }
+  if (!robot.camera_mounting && !calibration.rgb.T_base_cam_given) {
+    std::cerr << "error: " << args.config.string() << ": the camera mounting is unknown: calibration "
+              << calibration.source
+              << " gives no cameras.rgb.T_base_cam (camera optical frame -> base: x forward, y left, z up). Set "
+                 "camera.mounting: {translation: [x, y, z], rotation_xyzw: [x, y, z, w]}, or camera.mounting: identity "
+                 "if the base frame is to be the camera's\n";
+    return kExitInput;
+  }
+  if (robot.camera_mounting) {
+    calibration.rgb.T_base_cam = *robot.camera_mounting;
+    calibration.rgb.T_base_cam_given = true;
+  }
+  OutputFrame output_frame = OutputFrame::kBase;
+  if (auto error = choose_output_frame(args.frame, true, output_frame); !error.empty()) {
+    std::cerr << "error: " << error << "\n";
+    return kExitUsage;
+  }
+  const Eigen::Isometry3d T_base_cam = calibration.rgb.T_base_cam;
+  const Eigen::Isometry3d T_cam_base = T_base_cam.inverse();
+  std::cout << "camera mounting T_base_cam (" << (robot.camera_mounting ? "camera.mounting" : calibration.source)
+            << "): " << describe_mounting(T_base_cam) << "; trajectory and map in the " << to_string(output_frame) << " frame\n"
+            << std::flush;
   const unsigned wheel_can_id = calibration.wheels ? calibration.wheels->can_id : hal::WheelGeometry{}.can_id;
 
   {
@@ -105,8 +134,6 @@ int run_live(const RunArgs& args) {
             << ", calibration " << calibration.source << "\n"
             << describe_slam_config(slam_config) << std::flush;
 
-  const Eigen::Isometry3d T_base_cam = calibration.rgb.T_base_cam;
-  const Eigen::Isometry3d T_cam_base = T_base_cam.inverse();
 
   // Also in the write phase and after it. Without SA_RESTART: a blocking wait in the loop returns
   // at the signal instead of at its timeout.
@@ -257,14 +284,15 @@ int run_live(const RunArgs& args) {
   // The trajectory is what the pose output sent; the map takes the last optimised key-frame poses.
   pipeline.finish();
   report_error(outputs.add_written("trajectory.txt", [&](const fs::path& path) {
-    return eval::write_tum_trajectory(path, pipeline.trajectory());
+    return eval::write_tum_trajectory(path, in_output_frame(pipeline.trajectory(), output_frame, T_base_cam));
   }));
-  report_error(outputs.add("map.ply", std::string_view(loop.map().to_ply())));
+  report_error(outputs.add("map.ply", std::string_view(loop.map().to_ply(output_from_world(output_frame, T_base_cam)))));
 
   eval::JsonWriter json;
   json.begin_object();
   eval::write_report_header(json, RANKSLAM_VERSION, "run");
   json.string("config", args.config.string());
+  json.string("output_frame", to_string(output_frame));
   json.integer("keyframes", loop.keyframes());
   json.integer("loop_closures", loop.loop_closures());
   json.number("peak_rss_mb", peak_rss_mb());

@@ -194,6 +194,7 @@ hal::CameraCalibration kinect_rgb(const Eigen::Isometry3d& T_base_cam) {
   camera.cy = 255.3;
   camera.distortion = {0.0, 0.0, 0.0, 0.0, 0.0};
   camera.T_base_cam = T_base_cam;
+  camera.T_base_cam_given = true;
   return camera;
 }
 
@@ -536,6 +537,7 @@ std::optional<SceneModel> make_scene(const std::string& name, std::uint64_t seed
                                   .toRotationMatrix() *
                               R_base_optical();
     fisheye.T_base_cam = pose(R, Vector3d(0.10, 0.02, 0.75));
+    fisheye.T_base_cam_given = true;
     scene.calibration.fisheye = fisheye;
     scene.calibration.wheels = hal::WheelGeometry{};
   } else {

@@ -69,7 +69,8 @@ void PointMap::insert(const Eigen::Vector3f& point_world, std::uint8_t blue, std
   }
 }
 
-std::string PointMap::to_ply() const {
+std::string PointMap::to_ply(const Eigen::Isometry3d& T_out_world) const {
+  const Eigen::Isometry3f T = T_out_world.cast<float>();
   std::string header = "ply\nformat binary_little_endian 1.0\ncomment rankslam map\nelement vertex " +
                        std::to_string(used_) +
                        "\nproperty float x\nproperty float y\nproperty float z\n"
@@ -81,7 +82,7 @@ std::string PointMap::to_ply() const {
   static_assert(std::endian::native == std::endian::little, "PLY output assumes a little-endian host");
   for (const auto& voxel : table_) {
     if (voxel.key == kEmpty) continue;
-    const Eigen::Vector3f mean = voxel.sum / static_cast<float>(voxel.count);
+    const Eigen::Vector3f mean = T * Eigen::Vector3f(voxel.sum / static_cast<float>(voxel.count));
     std::memcpy(&ply[offset], mean.data(), 3 * sizeof(float));
     ply[offset + 12] = static_cast<char>(voxel.red_sum / voxel.count);
     ply[offset + 13] = static_cast<char>(voxel.green_sum / voxel.count);

@@ -124,6 +124,7 @@ std::string read_camera(const YAML::Node& node, const std::string& where, hal::C
     if (auto error = read_pose(node["T_base_cam"], where + ".T_base_cam", camera.T_base_cam); !error.empty()) {
       return error;
     }
+    camera.T_base_cam_given = true;
   }
   if (node["field_of_view_deg"]) {
     // The simulator's image circle: checked like every number, not used by the loop.
@@ -191,6 +192,10 @@ std::string load_calibration_yaml(const fs::path& path, hal::Calibration& calibr
   calibration.source = path.string();
   if (auto error = read_calibration(root, calibration); !error.empty()) return path.string() + ": " + error;
   return {};
+}
+
+std::string read_mounting(const YAML::Node& node, const std::string& where, Eigen::Isometry3d& T_base_cam) {
+  return read_pose(node, where, T_base_cam);
 }
 
 }  // namespace rankslam::replay

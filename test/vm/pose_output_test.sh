@@ -38,7 +38,7 @@ mkdir -p "$work"
 # metres reliably, so the compared trajectory moves. `run` takes its wheel prior from the frames
 # played onto vcan0 and received back; the reference is replay with wheels, its can.log frames
 # reaching the same odometry through the replay CAN bus (hal::replay::ReplayCanBus).
-"$rankslam" replay "$work/recording" --out "$work/replay" --quiet --mode baseline > "$work/replay.log"
+"$rankslam" replay "$work/recording" --out "$work/replay" --quiet --mode baseline --frame camera > "$work/replay.log"
 grep -q '"wheels_used": true' "$work/replay/report.json" || { echo "FAIL: the reference replay ran without wheels"; exit 1; }
 
 cat > "$work/robot.yaml" <<YAML
@@ -63,7 +63,7 @@ out="\$RANKSLAM_VM_OUT"
 chrt -f 60 candump -D -d -r 8388608 -L -n 1000000 vcan0 > "\$out/bus.log" 2> "\$out/candump.err" &
 dump=\$!
 sleep 0.3
-"$rankslam" run --config "$work/robot.yaml" --mode baseline --out "\$out/run" > "\$out/run.log" 2>&1 &
+"$rankslam" run --config "$work/robot.yaml" --mode baseline --frame camera --out "\$out/run" > "\$out/run.log" 2>&1 &
 run=\$!
 for i in \$(seq 1 1200); do
   grep -q "end of stream" "\$out/run.log" && break

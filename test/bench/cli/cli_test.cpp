@@ -1,5 +1,6 @@
 // Runs the rankslam executable as a user would and checks exit codes and outputs.
 #include "rankslam/eval/trajectory.hpp"
+#include "rankslam/replay/calibration_file.hpp"
 
 #include "cli_support.hpp"
 
@@ -11,11 +12,14 @@
 #include <cmath>
 #include <cstdlib>
 #include <cstdio>
+#include <cstring>
 #include <filesystem>
 #include <fstream>
 #include <sstream>
 #include <string>
 #include <utility>
+#include <vector>
+#include <algorithm>
 
 namespace {
 
@@ -128,7 +132,21 @@ TEST(Cli, ReplaySkipsACorruptImageNamesItAndFinishes) {
   EXPECT_NE(report.find("\"frames\": 7"), std::string::npos) << report;
 }
 
-TEST(Cli, SimulatedCorridorLoopReplays) {
+// The vertices of a binary little-endian map.ply as rankslam writes it (x y z float, r g b uchar).
+std::vector<Eigen::Vector3f> ply_points(const fs::path& file) {
+  const std::string ply = slurp(file);
+  const auto count_at = ply.find("element vertex ");
+  const auto body = ply.find("end_header\n");
+  if (count_at == std::string::npos || body == std::string::npos) return {};
+  const std::size_t count = std::stoul(ply.substr(count_at + 15));
+  std::vector<Eigen::Vector3f> points(count);
+  for (std::size_t i = 0; i < count && body + 11 + (i + 1) * 15 <= ply.size(); ++i) {
+    std::memcpy(points[i].data(), ply.data() + body + 11 + i * 15, 3 * sizeof(float));
+  }
+  return points;
+}
+
+TEST(Cli, SimulatedCorridorLoopReplaysInTheBaseFrame) {
   const fs::path recording = fresh_dir("rankslam_cli_corridor");
   const auto simulated = run("simulate corridor-loop --out " + recording.string() + " --frames 90");
   ASSERT_EQ(simulated.exit_code, 0) << simulated.output;
@@ -138,7 +156,51 @@ TEST(Cli, SimulatedCorridorLoopReplays) {
   const fs::path out = fresh_dir("rankslam_cli_corridor_out");
   const auto replayed = run("replay " + recording.string() + " --out " + out.string() + " --quiet");
   ASSERT_EQ(replayed.exit_code, 0) << replayed.output;
-  EXPECT_NE(slurp(out / "report.json").find("\"frames\": 90"), std::string::npos);
+  const std::string report = slurp(out / "report.json");
+  EXPECT_NE(report.find("\"frames\": 90"), std::string::npos);
+  EXPECT_NE(report.find("\"output_frame\": \"base\""), std::string::npos) << report;
+
+  // The ground truth (colour camera in the world) expressed as the base in the map frame, the
+  // base where it started: T_base_cam · T_gt(0)⁻¹ · T_gt(t) · T_base_cam⁻¹.
+  rankslam::hal::Calibration calibration;
+  ASSERT_EQ(rankslam::replay::load_calibration_yaml(recording / "calibration.yaml", calibration), "");
+  const Eigen::Isometry3d T_base_cam = calibration.rgb.T_base_cam;
+  auto truth = rankslam::eval::read_tum_trajectory(recording / "groundtruth.txt");
+  auto estimate = rankslam::eval::read_tum_trajectory(out / "trajectory.txt");
+  ASSERT_TRUE(truth.ok() && estimate.ok());
+  ASSERT_EQ(estimate.value().size(), 90U);
+  const Eigen::Isometry3d first_inverse = truth.value().front().T_world_cam.inverse();
+  std::size_t compared = 0;
+  double worst_m = 0.0;
+  double highest_m = 0.0;
+  for (const auto& pose : estimate.value()) {
+    for (const auto& true_pose : truth.value()) {
+      if (std::abs(true_pose.stamp_s - pose.stamp_s) > 1e-4) continue;
+      const Eigen::Isometry3d T_map_base = T_base_cam * first_inverse * true_pose.T_world_cam * T_base_cam.inverse();
+      worst_m = std::max(worst_m, (T_map_base.translation() - pose.T_world_cam.translation()).norm());
+      highest_m = std::max(highest_m, std::abs(pose.T_world_cam.translation().z()));
+      ++compared;
+      break;
+    }
+  }
+  EXPECT_EQ(compared, 90U);
+  // Unaligned: the estimate is in the base's map frame itself, within its drift.
+  EXPECT_LT(worst_m, 0.10);
+  // The base drives on the floor: its height stays at 0 (in the camera frame it would be 0.5 m
+  // below the first pose's origin along y).
+  EXPECT_LT(highest_m, 0.03);
+
+  // The map: the floor at z = 0, nothing below it.
+  const std::vector<Eigen::Vector3f> points = ply_points(out / "map.ply");
+  ASSERT_GT(points.size(), 1000U);
+  std::size_t on_floor = 0;
+  std::size_t below_floor = 0;
+  for (const Eigen::Vector3f& p : points) {
+    on_floor += std::abs(p.z()) < 0.03F ? 1 : 0;
+    below_floor += p.z() < -0.05F ? 1 : 0;
+  }
+  EXPECT_GT(on_floor, points.size() / 10) << on_floor << " of " << points.size() << " points at z = 0";
+  EXPECT_LT(below_floor, points.size() / 100) << below_floor << " of " << points.size() << " points below the floor";
 }
 
 // Records of a CSV file: its non-empty lines after the header.

@@ -124,6 +124,73 @@ TEST_F(CliConfig, RunRejectsMisspeltSectionsDuplicateKeysAndTypeErrorsByFileLine
   check("output:\n  pose_rate_hz: 5000\n", "output.pose_rate_hz = 5000 is outside");
 }
 
+// A copy of `base` whose calibration gives no mounting for the colour camera.
+fs::path without_rgb_mounting(const fs::path& base, const std::string& name) {
+  const fs::path copy = base.parent_path() / name;
+  fs::copy(base, copy, fs::copy_options::recursive);
+  std::string text = slurp(copy / "calibration.yaml");
+  const auto from = text.find("    T_base_cam:");
+  const auto rotation = text.find("rotation_xyzw", from);
+  EXPECT_TRUE(from != std::string::npos && rotation != std::string::npos) << text;
+  if (from != std::string::npos && rotation != std::string::npos) text.erase(from, text.find('\n', rotation) + 1 - from);
+  std::ofstream(copy / "calibration.yaml", std::ios::trunc) << text;
+  return copy;
+}
+
+TEST_F(CliConfig, RunRefusesAnUnknownCameraMountingAndPrintsTheOneItUses) {
+  const fs::path& dir = dir_;
+  simulate_base(dir);
+  without_rgb_mounting(dir / "base", "no_mount");
+  const auto run_with = [&](const std::string& camera) {
+    std::ofstream(dir / "robot.yaml", std::ios::trunc) << "camera: {" << camera << "}\ncan: {interface: vcan0}\n";
+    return run("run --config " + (dir / "robot.yaml").string() + " --out " + (dir / "out").string());
+  };
+  // No T_base_cam and no explicit identity: refused before any device or bus is used.
+  const auto refused = run_with("source: 'replay:no_mount'");
+  expect_input_error(refused, "robot.yaml", "the camera mounting is unknown");
+  EXPECT_NE(refused.output.find("cameras.rgb.T_base_cam"), std::string::npos) << refused.output;
+  EXPECT_NE(refused.output.find("camera.mounting: identity"), std::string::npos) << refused.output;
+  EXPECT_EQ(refused.output.find("camera mounting T_base_cam"), std::string::npos) << refused.output;
+  // Both a configured and a calibrated mounting: which one was meant is unknown.
+  expect_input_error(run_with("source: 'replay:base', mounting: identity"), "robot.yaml", "keep one");
+  // The mounting used is printed, wherever it came from (the run may then stop at the bus, which
+  // this machine may not have).
+  const auto identity = run_with("source: 'replay:no_mount', mounting: identity");
+  EXPECT_NE(identity.output.find("camera mounting T_base_cam (camera.mounting): translation [0.000, 0.000, 0.000] m, "
+                                 "roll pitch yaw [0.0, 0.0, 0.0] deg; trajectory and map in the base frame"),
+            std::string::npos)
+      << identity.output;
+  const auto configured =
+      run_with("source: 'replay:no_mount', mounting: {translation: [0.1, 0, 0.3], rotation_xyzw: [-0.5, 0.5, -0.5, 0.5]}");
+  EXPECT_NE(configured.output.find("camera mounting T_base_cam (camera.mounting): translation [0.100, 0.000, 0.300] m, "
+                                   "roll pitch yaw [-90.0, 0.0, -90.0] deg"),
+            std::string::npos)
+      << configured.output;
+  const auto calibrated = run_with("source: 'replay:base'");
+  EXPECT_NE(calibrated.output.find("calibration.yaml): translation [0.150, 0.000, 0.500] m, "
+                                   "roll pitch yaw [-90.0, 0.0, -90.0] deg"),
+            std::string::npos)
+      << calibrated.output;
+  // A mistyped mounting names the key and its line.
+  expect_input_error(run_with("source: 'replay:base', mounting: optical"), "robot.yaml",
+                     "camera.mounting must be identity or {translation");
+  expect_input_error(run_with("source: 'replay:base', mounting: {translation: [0, 0, 0], rotation_xyzw: [1, 1, 0, 0]}"),
+                     "robot.yaml", "camera.mounting.rotation_xyzw is not a unit quaternion");
+}
+
+TEST_F(CliConfig, ReplayWritesTheBaseFrameOnlyWithAKnownMounting) {
+  const fs::path& dir = dir_;
+  const fs::path base = simulate_base(dir);
+  const fs::path unknown = without_rgb_mounting(base, "no_mount");
+  const auto refused = replay(unknown, dir / "out", "--frame base");
+  EXPECT_EQ(refused.exit_code, 2) << refused.output;
+  EXPECT_NE(refused.output.find("--frame base needs the camera mounting"), std::string::npos) << refused.output;
+  ASSERT_EQ(replay(unknown, dir / "out").exit_code, 0);
+  EXPECT_NE(slurp(dir / "out" / "report.json").find("\"output_frame\": \"camera\""), std::string::npos);
+  ASSERT_EQ(replay(base, dir / "out").exit_code, 0);
+  EXPECT_NE(slurp(dir / "out" / "report.json").find("\"output_frame\": \"base\""), std::string::npos);
+}
+
 TEST_F(CliConfig, DeeplyNestedYamlIsNamedAsInvalidYaml) {
   const fs::path& dir = dir_;
   const fs::path base = simulate_base(dir);

@@ -27,6 +27,9 @@ struct CameraCalibration {
   std::array<double, 5> distortion{};
   /// Maps points from this camera's optical frame into the robot base frame.
   Eigen::Isometry3d T_base_cam = Eigen::Isometry3d::Identity();
+  /// T_base_cam was given (calibration.yaml); otherwise the identity above is a placeholder and
+  /// the mounting is unknown.
+  bool T_base_cam_given = false;
 };
 
 /// Differential-drive wheel geometry and the CAN id its encoder frames use.

@@ -1,6 +1,7 @@
 #pragma once
 
 #include <Eigen/Core>
+#include <Eigen/Geometry>
 
 #include <cstdint>
 #include <string>
@@ -23,8 +24,9 @@ class PointMap {
   [[nodiscard]] std::size_t capacity() const { return max_points_; }
   [[nodiscard]] std::uint64_t rejected_points() const { return rejected_; }
 
-  /// The map as a binary little-endian PLY (x y z float, red green blue uchar).
-  [[nodiscard]] std::string to_ply() const;
+  /// The map as a binary little-endian PLY (x y z float, red green blue uchar), its points taken
+  /// into the output frame by T_out_world.
+  [[nodiscard]] std::string to_ply(const Eigen::Isometry3d& T_out_world = Eigen::Isometry3d::Identity()) const;
 
  private:
   struct Voxel {
