@@ -168,7 +168,8 @@ void draw_text_block(cv::Mat& image, Rng& rng, const cv::Rect& area, const cv::S
   for (int l = 0; l < lines && y < area.y + area.height; ++l, y += line_height) {
     std::string text = random_word(rng, 2, 8);
     while (cv::getTextSize(text, font, scale, thickness, &baseline).width < area.width * rng.uniform(0.4, 0.95)) {
-      text += " " + random_word(rng, 1, 7);
+      text += ' ';
+      text += random_word(rng, 1, 7);
     }
     cv::putText(image, text, {area.x, y}, font, scale, color, thickness, cv::LINE_AA);
   }

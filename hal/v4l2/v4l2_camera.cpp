@@ -121,7 +121,10 @@ std::string V4l2Camera::open_device() {
   }
   if (chosen == 0) {
     std::string list;
-    for (std::size_t i = 0; i < offered_count; ++i) list += (i == 0 ? "" : " ") + fourcc_to_string(offered[i]);
+    for (std::size_t i = 0; i < offered_count; ++i) {
+      if (i != 0) list += ' ';
+      list += fourcc_to_string(offered[i]);
+    }
     if (offered_count == kMaxFormats) list += " ...";
     const char* wanted = options_.format == PixelFormat::kYuyv    ? "YUYV"
                          : options_.format == PixelFormat::kMjpeg ? "MJPEG"
