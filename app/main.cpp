@@ -19,11 +19,10 @@ int main(int argc, char** argv) {
   ReplayArgs replay;
   auto* replay_cmd = app.add_subcommand("replay", "Run the SLAM loop over a recording and write trajectory, map, plot and report");
   replay_cmd->add_option("recording", replay.recording,
-                         "Recording directory (TUM RGB-D layout); without it the built-in default scene is simulated and replayed")
-      ->check(CLI::ExistingDirectory);
+                         "Recording directory (TUM RGB-D layout); without it the built-in default scene is simulated and replayed");
   replay_cmd->add_option("--out,-o", replay.out, "Output directory")->required();
   replay_cmd->add_option("--mode,-m", replay.mode, "Registration: baseline, photometric, geometric or fused (default: fused)");
-  replay_cmd->add_option("--config,-c", replay.config, "YAML configuration (see deploy/config/default.yaml)")->check(CLI::ExistingFile);
+  replay_cmd->add_option("--config,-c", replay.config, "YAML configuration (see deploy/config/default.yaml)");
   replay_cmd->add_option("--rate", replay.rate, "Play at this multiple of the recorded rate, dropping frames the loop cannot keep up with (0 = as fast as possible, lossless)")
       ->check(CLI::Validator(
           [](std::string& text) -> std::string {
@@ -56,14 +55,14 @@ int main(int argc, char** argv) {
 
   EvalArgs eval;
   auto* eval_cmd = app.add_subcommand("eval", "TUM absolute trajectory error and relative pose error of EST against GT");
-  eval_cmd->add_option("ground_truth", eval.ground_truth, "Ground-truth trajectory (TUM format)")->required()->check(CLI::ExistingFile);
-  eval_cmd->add_option("estimate", eval.estimate, "Estimated trajectory (TUM format)")->required()->check(CLI::ExistingFile);
+  eval_cmd->add_option("ground_truth", eval.ground_truth, "Ground-truth trajectory (TUM format)")->required();
+  eval_cmd->add_option("estimate", eval.estimate, "Estimated trajectory (TUM format)")->required();
   eval_cmd->add_option("--max-difference", eval.max_difference_s, "Largest stamp difference of associated poses, s")->check(CLI::PositiveNumber);
   eval_cmd->add_option("--delta", eval.delta_s, "RPE interval, s")->check(CLI::PositiveNumber);
 
   RunArgs run;
   auto* run_cmd = app.add_subcommand("run", "Run live on the robot: sensors in, pose out over CAN");
-  run_cmd->add_option("--config,-c", run.config, "Robot configuration (deploy/config/<robot>.yaml)")->required()->check(CLI::ExistingFile);
+  run_cmd->add_option("--config,-c", run.config, "Robot configuration (deploy/config/<robot>.yaml)")->required();
   run_cmd->add_option("--out,-o", run.out, "Where trajectory and map are flushed on exit");
   run_cmd->add_option("--mode,-m", run.mode, "Registration: baseline, photometric, geometric or fused (default: fused)");
   run_cmd->add_option("--frame", run.frame, "Frame of trajectory.txt and map.ply: base (default: the map frame of the base, x forward, z up) or camera (the first camera's optical frame)")
@@ -72,8 +71,7 @@ int main(int argc, char** argv) {
   RecordArgs record;
   auto* record_cmd = app.add_subcommand("record", "Record the live sensors (camera, CAN) into a recording directory (TUM layout, see README)");
   record_cmd->add_option("--out,-o", record.out, "Output recording directory (absent or empty)")->required();
-  record_cmd->add_option("--config,-c", record.config, "Robot configuration naming camera and CAN interface (default: first OpenNI2 device, no CAN)")
-      ->check(CLI::ExistingFile);
+  record_cmd->add_option("--config,-c", record.config, "Robot configuration naming camera and CAN interface (default: first OpenNI2 device, no CAN)");
   record_cmd->add_option("--frames,-n", record.frames, "Stop after this many frames (0 = until stopped)");
   record_cmd->add_option("--seconds,-s", record.seconds, "Stop after this many seconds (0 = until stopped)")->check(CLI::NonNegativeNumber);
 

@@ -413,4 +413,18 @@ TEST(Cli, ReplayErrorsNameTheProblem) {
   EXPECT_NE(result.output.find("unknown mode 'fuzed'"), std::string::npos) << result.output;
 }
 
+TEST(Cli, AMissingInputFileIsAnInputErrorNamingIt) {
+  const fs::path dir = fresh_dir("rankslam_cli_missing");
+  fs::create_directories(dir);
+  const std::string missing = (dir / "missing.yaml").string();
+  for (const std::string& command :
+       {"replay " + dir.string() + " --out " + (dir / "out").string() + " --config " + missing, "run --config " + missing,
+        "record --config " + missing + " --out " + (dir / "rec").string(), "eval " + missing + " " + missing,
+        "replay " + (dir / "no-recording").string() + " --out " + (dir / "out").string()}) {
+    const auto result = run(command);
+    EXPECT_EQ(result.exit_code, 3) << command << "\n" << result.output;
+    EXPECT_NE(result.output.find(dir.string()), std::string::npos) << command << "\n" << result.output;
+  }
+}
+
 }  // namespace
