@@ -1,6 +1,6 @@
 #pragma once
 
-// Relative repeatability of 3D keypoints (thesis §4.5.1 after Salti et al.; ALGORITHMS.md §8) for
+// Relative repeatability of 3D keypoints (thesis §4.5.1 after Salti et al.; docs/methods.md §12) for
 // the geometric front-end's detectors (IS3D, ROS, uniform sampling) and PCL's ISS keypoints as
 // an oracle (when PCL is available), on frame pairs with known relative motion.
 //

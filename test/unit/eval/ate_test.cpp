@@ -218,7 +218,7 @@ TEST(Ate, TumFreiburg1XyzRgbdslamFixture) {
   const Result<AteResult> ate = compute_ate(truth.value(), estimate.value());
   ASSERT_TRUE(ate.ok()) << ate.error();
   const ErrorStats& stats = ate.value().translation_m;
-  // The figure the TUM benchmark publishes for this estimate (ALGORITHMS.md §8).
+  // The figure the TUM benchmark publishes for this estimate (docs/methods.md §12).
   EXPECT_NEAR(stats.rmse, 0.0135, 0.0001);
   // The benchmark's own evaluate_ate.py (numpy) on the same files prints, to 10 decimals:
   // 786 pairs, rmse 0.0134734678, mean 0.0120294764, median 0.0111757511, std 0.0060684456,
