@@ -15,7 +15,8 @@ simulated() {  # scene seed
 replay() {  # name recording args...
   local name=$1 recording=$2
   shift 2
-  "$bin" replay "$recording" --out "$out/$name" --quiet "$@" > "$out/$name.log" 2>&1 || {
+  # The camera frame, that of the baselines written before outputs followed the mounting.
+  "$bin" replay "$recording" --out "$out/$name" --quiet --frame camera "$@" > "$out/$name.log" 2>&1 || {
     echo "$name: replay failed, see $out/$name.log" >&2
     return 1
   }

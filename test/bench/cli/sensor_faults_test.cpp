@@ -29,6 +29,7 @@
 #include <map>
 #include <sstream>
 #include <string>
+#include <utility>
 #include <vector>
 
 namespace {
@@ -338,7 +339,11 @@ void step_can_log_clock(const fs::path& recording, double from_s, double delta_s
     if (line.size() < 3 || line[0] != '(') continue;
     const std::size_t close = line.find(')');
     const double stamp_s = std::stod(line.substr(1, close - 1));
-    if (stamp_s >= from_s) line = "(" + stamp_text(stamp_s + delta_s) + line.substr(close);
+    if (stamp_s < from_s) continue;
+    std::string stepped = "(";
+    stepped += stamp_text(stamp_s + delta_s);
+    stepped.append(line, close);
+    line = std::move(stepped);
   }
   write_lines(recording / "can.log", lines);
 }
