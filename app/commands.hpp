@@ -43,6 +43,8 @@ struct RunArgs {
   std::filesystem::path config;
   std::filesystem::path out;
   std::string mode;
+  /// --can-interface: wins over the file's can.interface (the systemd unit's instance); empty: the file's.
+  std::string can_interface;
 };
 
 struct RecordArgs {

@@ -64,6 +64,12 @@ int main(int argc, char** argv) {
   run_cmd->add_option("--config,-c", run.config, "Robot configuration (deploy/config/<robot>.yaml)")->required()->check(CLI::ExistingFile);
   run_cmd->add_option("--out,-o", run.out, "Where trajectory and map are flushed on exit");
   run_cmd->add_option("--mode,-m", run.mode, "Registration: baseline, photometric, geometric or fused (default: fused)");
+  run_cmd->add_option("--can-interface", run.can_interface, "SocketCAN interface, instead of the configuration's can.interface (said when they differ)")
+      ->check(CLI::Validator(
+          [](std::string& text) -> std::string {
+            return text.empty() || text.size() >= 16 ? "--can-interface must be a network interface name of 1 .. 15 characters" : "";
+          },
+          "IFACE"));
 
   RecordArgs record;
   auto* record_cmd = app.add_subcommand("record", "Record the live sensors (camera, CAN) into a recording directory (TUM layout, see README)");
