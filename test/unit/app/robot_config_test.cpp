@@ -104,8 +104,12 @@ TEST_F(RobotConfigTest, ExampleRobotConfigurationLoads) {
 
 TEST_F(RobotConfigTest, StatusIntervalIsRangeChecked) {
   RobotConfig config;
-  EXPECT_EQ(load_robot_config(write("camera: {source: 'replay:r'}\noutput: {status_interval_s: 0}\n"), config), "");
+  EXPECT_EQ(load("camera: {source: 'replay:r'}\noutput: {status_interval_s: 0}\n", config), "");
   EXPECT_DOUBLE_EQ(config.status_interval_s, 0.0);
+  const auto error_of = [&](const std::string& text) {
+    RobotConfig rejected;
+    return load(text, rejected);
+  };
   EXPECT_NE(error_of("camera: {source: 'replay:r'}\noutput: {status_interval_s: -1}\n").find("output.status_interval_s"),
             std::string::npos);
   EXPECT_NE(error_of("camera: {source: 'replay:r'}\noutput: {status_interval_s: 86401}\n").find("output.status_interval_s"),
