@@ -64,6 +64,11 @@ int run_live(const RunArgs& args) {
   }
   if (const int code = make_output_directory(out); code != kExitOk) return code;
 
+  // Under systemd (Type=notify), whose watchdog runs from the start: fed once the camera is open
+  // (which can take seconds), by each turn of the loop from READY=1 on.
+  systemd::ServiceNotifier notifier;
+  const hal::MonotonicClock setup_clock;
+
   // Set-up: everything that may fail or allocate happens here.
   replay::Recording recording;
   std::unique_ptr<hal::DepthCamera> camera_driver;
@@ -96,6 +101,7 @@ int run_live(const RunArgs& args) {
     std::cerr << "error: " << error << "\n";
     return kExitInput;
   }
+  notifier.alive(setup_clock.now_ns());
   const hal::Calibration& calibration = camera.calibration();
   const unsigned wheel_can_id = calibration.wheels ? calibration.wheels->can_id : hal::WheelGeometry{}.can_id;
 
@@ -205,7 +211,6 @@ int run_live(const RunArgs& args) {
 
   // The service manager learns that set-up is done when the loop starts, and from then on that
   // the loop goes round (WatchdogSec=); the journal gets a status line every interval.
-  systemd::ServiceNotifier notifier;
   if (notifier.active()) {
     std::cout << "systemd: notify socket" << (notifier.watchdog_period_ns() > 0
                                                   ? ", watchdog fed every " + std::to_string(notifier.watchdog_period_ns() / 1'000'000) + " ms by the loop"
