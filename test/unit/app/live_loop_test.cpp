@@ -4,6 +4,8 @@
 // past its end, each read timing out) or sticks inside read(). READY=1 must come when the loop
 // starts, WATCHDOG=1 while the loop goes round whether or not frames come, none while it is
 // stuck, STOPPING=1 at the end. No time is asserted: only which datagrams arrive.
+#include "commands.hpp"
+#include "exit_codes.hpp"
 #include "live_loop.hpp"
 #include "status_line.hpp"
 
@@ -25,6 +27,9 @@
 #include <condition_variable>
 #include <cstdlib>
 #include <filesystem>
+#include <fstream>
+#include <iostream>
+#include <sstream>
 #include <mutex>
 #include <string>
 #include <thread>
@@ -242,6 +247,43 @@ TEST_F(LiveLoopTest, WatchdogFollowsTheLoopNotTheCamera) {
   EXPECT_NE(lines.find("camera reads without a frame "), std::string::npos) << lines;
   EXPECT_NE(lines.find(" MB\n"), std::string::npos) << lines;
   camera.close();
+}
+
+// The unit's instance reaches `run` as --can-interface: it is the interface used, and one that
+// differs from the file's is said. The host has no CAN interface: the start-up error names it.
+TEST_F(LiveLoopTest, CanInterfaceOptionWinsOverTheConfigurationAndIsSaid) {
+  sim::SimulationOptions simulation;
+  simulation.scene = "office";
+  simulation.out_dir = dir_ / "recording";
+  simulation.frames = 2;
+  ASSERT_EQ(sim::simulate_recording(simulation, nullptr), "");
+  std::ofstream(dir_ / "robot.yaml") << "camera: {source: 'replay:recording'}\ncan: {interface: rsfile0}\n";
+
+  const auto run = [&](const std::string& can_interface, std::string& said) {
+    RunArgs args;
+    args.config = dir_ / "robot.yaml";
+    args.out = dir_ / "out";
+    args.can_interface = can_interface;
+    std::ostringstream out;
+    std::ostringstream err;
+    std::streambuf* const old_out = std::cout.rdbuf(out.rdbuf());
+    std::streambuf* const old_err = std::cerr.rdbuf(err.rdbuf());
+    const int code = run_live(args);
+    std::cout.rdbuf(old_out);
+    std::cerr.rdbuf(old_err);
+    said = out.str() + err.str();
+    return code;
+  };
+  std::string said;
+  EXPECT_EQ(run("rsunit0", said), kExitInput);
+  EXPECT_NE(said.find("--can-interface rsunit0 overrides can.interface rsfile0"), std::string::npos) << said;
+  EXPECT_NE(said.find("error: CAN interface rsunit0:"), std::string::npos) << said;
+  EXPECT_EQ(said.find("CAN interface rsfile0:"), std::string::npos) << said;
+
+  EXPECT_EQ(run("rsfile0", said), kExitInput);  // agreeing: nothing to say
+  EXPECT_EQ(said.find("overrides"), std::string::npos) << said;
+  EXPECT_EQ(run("", said), kExitInput);         // no option: the file's
+  EXPECT_NE(said.find("error: CAN interface rsfile0:"), std::string::npos) << said;
 }
 
 TEST(ServiceNotifier, DoesNothingOutsideAServiceAndHalvesTheWatchdogInterval) {
