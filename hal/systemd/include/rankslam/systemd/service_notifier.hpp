@@ -22,7 +22,7 @@ class ServiceNotifier {
   /// WATCHDOG=1 is sent at most once per this period, half the watchdog interval; 0: no watchdog.
   [[nodiscard]] std::int64_t watchdog_period_ns() const { return watchdog_period_ns_; }
 
-  /// READY=1: set-up is done and the loop starts (also starts the watchdog period at `now_ns`).
+  /// READY=1: set-up is done and the loop starts; the next WATCHDOG=1 is due a period after `now_ns`.
   void ready(std::int64_t now_ns);
   /// The loop went round at `now_ns` (CLOCK_MONOTONIC): WATCHDOG=1 when a period has passed since
   /// the last one (or READY=1). Allocates nothing; a turn without a notification is one compare.
@@ -30,7 +30,7 @@ class ServiceNotifier {
   /// STOPPING=1: the loop has ended; the outputs are written next.
   void stopping();
 
-  /// Notifications the manager accepted: WATCHDOG=1 ones, and sd_notify failures of any kind.
+  /// WATCHDOG=1 notifications sent; notifications of any kind that sd_notify could not send.
   [[nodiscard]] std::uint64_t watchdog_sent() const { return watchdog_sent_; }
   [[nodiscard]] std::uint64_t failures() const { return failures_; }
 
