@@ -46,6 +46,8 @@ struct RunArgs {
   std::filesystem::path out;
   std::string mode;
   std::string frame;  ///< as ReplayArgs::frame
+  /// --can-interface: wins over the file's can.interface (the systemd unit's instance); empty: the file's.
+  std::string can_interface;
 };
 
 struct RecordArgs {

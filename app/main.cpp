@@ -67,6 +67,12 @@ int main(int argc, char** argv) {
   run_cmd->add_option("--mode,-m", run.mode, "Registration: baseline, photometric, geometric or fused (default: fused)");
   run_cmd->add_option("--frame", run.frame, "Frame of trajectory.txt and map.ply: base (default: the map frame of the base, x forward, z up) or camera (the first camera's optical frame)")
       ->check(CLI::IsMember({"camera", "base"}));
+  run_cmd->add_option("--can-interface", run.can_interface, "SocketCAN interface, instead of the configuration's can.interface (said when they differ)")
+      ->check(CLI::Validator(
+          [](std::string& text) -> std::string {
+            return text.empty() || text.size() >= 16 ? "--can-interface must be a network interface name of 1 .. 15 characters" : "";
+          },
+          "IFACE"));
 
   RecordArgs record;
   auto* record_cmd = app.add_subcommand("record", "Record the live sensors (camera, CAN) into a recording directory (TUM layout, see README)");

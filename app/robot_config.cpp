@@ -22,7 +22,7 @@ const std::map<std::string, std::set<std::string>> kKeys = {
     {"camera", {"source", "replay_rate", "max_frames", "exit_after_end_s", "calibration", "mounting", "width", "height", "fps", "ir"}},
     {"can", {"interface", "play_wheel_frames"}},
     {"output", {"pose_rate_hz", "heartbeat_rate_hz", "watchdog_timeout_s", "lost_after_failed_frames", "wheel_propagation", "dir",
-                "max_trajectory_poses", "realtime_priority"}},
+                "max_trajectory_poses", "realtime_priority", "status_interval_s"}},
 };
 
 // A string or boolean.
@@ -145,6 +145,8 @@ std::string load_robot_config(const std::filesystem::path& path, RobotConfig& co
     check(read_number(output, "output", "max_trajectory_poses", std::uint32_t{1}, std::uint32_t{10'000'000},
                       config.max_trajectory_poses));
     check(read_number(output, "output", "realtime_priority", 0, hal::kMaxRealtimePriority, config.output_realtime_priority));
+    // Up to a day; 0 turns the line off.
+    check(read_number(output, "output", "status_interval_s", 0.0, 86400.0, config.status_interval_s));
   }
   if (!error.empty()) return error;
   if (auto range = nav::validate(config.output); !range.empty()) return file + "output." + range;
@@ -172,7 +174,8 @@ std::string describe_robot_config(const RobotConfig& config) {
        << "output.wheel_propagation = " << (config.output.wheel_propagation ? "true" : "false") << "\n"
        << "output.dir = " << config.output_dir.string() << "\n"
        << "output.max_trajectory_poses = " << config.max_trajectory_poses << "\n"
-       << "output.realtime_priority = " << config.output_realtime_priority << "  # SCHED_FIFO, 0 = ordinary scheduling\n";
+       << "output.realtime_priority = " << config.output_realtime_priority << "  # SCHED_FIFO, 0 = ordinary scheduling\n"
+       << "output.status_interval_s = " << config.status_interval_s << " s  # status line on stderr, 0 = none\n";
   return text.str();
 }
 

@@ -60,6 +60,9 @@ struct RobotConfig {
   /// output.realtime_priority: SCHED_FIFO priority of the pose output's thread, so a loaded CPU
   /// does not delay the pose cycles; 0 = ordinary scheduling.
   int output_realtime_priority = 10;
+  /// output.status_interval_s: a status line on stderr (the journal) this often while `run`
+  /// works; 0 = none.
+  double status_interval_s = 60.0;
 };
 
 /// The top-level sections load_robot_config reads (robot, camera, can, output); the file's

@@ -5,6 +5,7 @@
 #include "exit_codes.hpp"
 #include "frame_pipeline.hpp"
 #include "output_frame.hpp"
+#include "live_loop.hpp"
 #include "robot_config.hpp"
 #include "stop_signals.hpp"
 #include "wheel_player.hpp"
@@ -18,6 +19,9 @@
 #include "rankslam/replay/replay_camera.hpp"
 #include "rankslam/slam/slam_loop.hpp"
 #include "rankslam/socketcan/socketcan_bus.hpp"
+#include "rankslam/systemd/service_notifier.hpp"
+
+#include <unistd.h>
 
 #include <atomic>
 #include <chrono>
@@ -37,6 +41,17 @@ int run_live(const RunArgs& args) {
     std::cerr << "error: " << error << "\n";
     return kExitInput;
   }
+  if (!args.can_interface.empty()) {
+    // The unit's instance (rankslam@can0.service) names the interface; it wins over the file,
+    // and a disagreement is said, not silent.
+    if (robot.can_interface_given && robot.can_interface != args.can_interface) {
+      std::cerr << "notice: --can-interface " << args.can_interface << " overrides can.interface "
+                << robot.can_interface << " of " << args.config.string() << "\n";
+    }
+    robot.can_interface = args.can_interface;
+    robot.can_interface_given = true;
+    std::cout << "can.interface " << args.can_interface << " from --can-interface" << std::endl;
+  }
   slam::SlamConfig slam_config;
   nav::WheelOdometryConfig wheel_config;
   if (const int code = load_pipeline_config(args.config, args.mode, slam_config, wheel_config, robot_config_sections());
@@ -49,6 +64,11 @@ int run_live(const RunArgs& args) {
     return kExitUsage;
   }
   if (const int code = make_output_directory(out); code != kExitOk) return code;
+
+  // Under systemd (Type=notify), whose watchdog runs from the start: fed once the camera is open
+  // (which can take seconds), by each turn of the loop from READY=1 on.
+  systemd::ServiceNotifier notifier;
+  const hal::MonotonicClock setup_clock;
 
   // Set-up: everything that may fail or allocate happens here.
   replay::Recording recording;
@@ -82,6 +102,7 @@ int run_live(const RunArgs& args) {
     std::cerr << "error: " << error << "\n";
     return kExitInput;
   }
+  notifier.alive(setup_clock.now_ns());
   // The pose on CAN is the base's: a mounting left to default would put camera axes on the bus.
   hal::Calibration calibration = camera.calibration();
   if (robot.camera_mounting && calibration.rgb.T_base_cam_given) {
@@ -107,7 +128,6 @@ int run_live(const RunArgs& args) {
     return kExitUsage;
   }
   const Eigen::Isometry3d T_base_cam = calibration.rgb.T_base_cam;
-  const Eigen::Isometry3d T_cam_base = T_base_cam.inverse();
   std::cout << "camera mounting T_base_cam (" << (robot.camera_mounting ? "camera.mounting" : calibration.source)
             << "): " << describe_mounting(T_base_cam) << "; trajectory and map in the " << to_string(output_frame) << " frame\n"
             << std::flush;
@@ -216,56 +236,26 @@ int run_live(const RunArgs& args) {
     }
   }
 
-  hal::RgbdFrame frame;
-  bool interrupted = false;
-  std::optional<std::chrono::steady_clock::time_point> end_time;
-  for (;;) {
-    if (stop_requested()) {
-      interrupted = true;
-      break;
-    }
-    if (end_time) {
-      if (robot.exit_after_end_s >= 0.0 &&
-          std::chrono::steady_clock::now() - *end_time >= std::chrono::duration<double>(robot.exit_after_end_s)) {
-        break;
-      }
-      std::this_thread::sleep_for(std::chrono::milliseconds(20));
-      continue;
-    }
-    const hal::ReadStatus status = camera.read(frame, std::chrono::milliseconds(100));
-    if (replay_camera != nullptr) {
-      for (const auto& warning : replay_camera->take_warnings()) std::cerr << "warning: " << warning << "\n";
-    }
-    if (status == hal::ReadStatus::kEndOfStream) {
-      std::cout << "end of stream after " << pipeline.trajectory().size() << " frames" << std::endl;
-      end_time = std::chrono::steady_clock::now();
-      mailbox.set_end_of_stream();
-      continue;
-    }
-    if (status != hal::ReadStatus::kOk) {
-      mailbox.set_camera_fault(status == hal::ReadStatus::kFault);
-      continue;
-    }
-    const std::int64_t capture_ns = hal::MonotonicClock{}.now_ns();
-    const slam::FrameResult result = pipeline.process(frame);
-    const bool registered =
-        result.status == slam::FrameStatus::kTracking || result.status == slam::FrameStatus::kFirstFrame;
-    nav::PoseSample sample;
-    // The map frame is the base frame at the first camera frame.
-    sample.T_map_base = T_base_cam * result.T_world_cam * T_cam_base;
-    sample.capture_ns = capture_ns;
-    sample.frame_sequence = frame.sequence;
-    sample.registered = registered;
-    sample.wheels_only = result.status == slam::FrameStatus::kWheels;
-    sample.wheel_slip = result.wheels.vision_trusted;
-    if (result.status != slam::FrameStatus::kFirstFrame && result.features > 0) {
-      sample.inlier_percent = static_cast<std::uint8_t>(std::min(100, 100 * result.inliers / result.features));
-    }
-    // The correction in base frames: T_map_base = T_base_cam * T_world_cam * T_cam_base.
-    const Eigen::Isometry3d correction = T_base_cam * result.map_correction * T_cam_base;
-    mailbox.post(sample, result.graph_applied ? &correction : nullptr,
-                 wheels.enabled() ? std::optional<std::int64_t>(pipeline.wheel_stamp_ns(frame)) : std::nullopt);
+  // The service manager learns that set-up is done when the loop starts, and from then on that
+  // the loop goes round (WatchdogSec=); the journal gets a status line every interval.
+  if (notifier.active()) {
+    std::cout << "systemd: notify socket" << (notifier.watchdog_period_ns() > 0
+                                                  ? ", watchdog fed every " + std::to_string(notifier.watchdog_period_ns() / 1'000'000) + " ms by the loop"
+                                                  : std::string(", no watchdog"))
+              << std::endl;
   }
+  StatusLine status_line(static_cast<std::int64_t>(robot.status_interval_s * 1e9), STDERR_FILENO);
+  LiveLoopParts parts;
+  parts.camera = &camera;
+  parts.replay_camera = replay_camera;
+  parts.pipeline = &pipeline;
+  parts.mailbox = &mailbox;
+  parts.wheels = wheels.enabled();
+  parts.T_base_cam = T_base_cam;
+  parts.exit_after_end_s = robot.exit_after_end_s;
+  parts.notifier = &notifier;
+  parts.status_line = &status_line;
+  const bool interrupted = run_live_loop(parts, [] { return stop_requested(); });
 
   if (player) player->stop();
   stop_output = true;

@@ -47,6 +47,10 @@ list(FILTER _rankslam_example_configs EXCLUDE REGEX "/default\\.yaml$")  # top l
 if(_rankslam_example_configs)
   install(FILES ${_rankslam_example_configs} DESTINATION share/rankslam/config)
 endif()
+# The configuration the service runs with, ready for the robot as installed (first OpenNI2
+# sensor; the CAN interface is the unit's instance): a conffile, so dpkg keeps local edits.
+install(FILES ${PROJECT_SOURCE_DIR}/deploy/config/example-robot.yaml DESTINATION /etc/rankslam RENAME robot.yaml)
+file(WRITE ${CMAKE_BINARY_DIR}/deb/conffiles "/etc/rankslam/robot.yaml\n")
 # The units' Documentation= points here; the README's links to docs/ resolve beside it.
 install(FILES ${PROJECT_SOURCE_DIR}/README.md DESTINATION share/doc/rankslam)
 install(FILES ${PROJECT_SOURCE_DIR}/docs/methods.md ${PROJECT_SOURCE_DIR}/docs/results.md DESTINATION share/doc/rankslam/docs)
@@ -127,6 +131,7 @@ if(_rankslam_units OR _rankslam_udev_rules)
   set(CPACK_DEBIAN_PACKAGE_CONTROL_EXTRA
       ${CMAKE_BINARY_DIR}/deb/postinst ${CMAKE_BINARY_DIR}/deb/postrm)
 endif()
+list(APPEND CPACK_DEBIAN_PACKAGE_CONTROL_EXTRA ${CMAKE_BINARY_DIR}/deb/conffiles)
 list(JOIN _rankslam_extra_depends ", " _rankslam_extra_depends)
 
 # Depends, computed when cpack runs (the binary exists only after the build).

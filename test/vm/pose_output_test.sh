@@ -8,7 +8,12 @@
 # trajectory and map flushed after SIGTERM. candump runs under SCHED_FIFO with a large receive
 # buffer and reports its own drops, so a lost frame is told apart from one never sent.
 #
-#   test/vm/pose_output_test.sh RANKSLAM POSE_LOG_CHECK WORK_DIR [stress|faults]
+#   test/vm/pose_output_test.sh RANKSLAM POSE_LOG_CHECK WORK_DIR [normal|stress|faults] [NOTIFY_LISTEN]
+#
+# NOTIFY_LISTEN (test/vm/notify_listen.cpp): `run` goes under a NOTIFY_SOCKET with a 1 s watchdog,
+# as under systemd's Type=notify, and must send READY=1 first (a WATCHDOG=1 of the set-up aside),
+# WATCHDOG=1 also after the end of the recording, when no camera frame comes, and STOPPING=1
+# last; its status line (every 1 s here) must be in its output.
 #
 # stress: from the end of the recording, three busy processes at nice -20 take the CPU for 4 s
 # while the pose output goes on; its cycles must stay whole, in order and at their rate.
@@ -23,12 +28,13 @@ rankslam="$1"
 checker="$2"
 work="$3"
 mode="${4:-normal}"
+listener="${5:-}"
 readonly frames=60 pose_rate_hz=50 heartbeat_rate_hz=10 watchdog_s=0.4 stress_s=4
 case "$mode" in
   normal) hogs=0 ;;
   stress) hogs=3 ;;
   faults) hogs=0 ;;
-  *) echo "usage: $0 RANKSLAM POSE_LOG_CHECK WORK_DIR [stress|faults]"; exit 2 ;;
+  *) echo "usage: $0 RANKSLAM POSE_LOG_CHECK WORK_DIR [normal|stress|faults] [NOTIFY_LISTEN]"; exit 2 ;;
 esac
 
 rm -rf "$work"
@@ -53,6 +59,7 @@ output:
   pose_rate_hz: $pose_rate_hz
   heartbeat_rate_hz: $heartbeat_rate_hz
   watchdog_timeout_s: $watchdog_s
+  status_interval_s: 1
 YAML
 
 # Inside the VM: capture the bus, run until the end of the recording, (stress: take the CPU;
@@ -63,13 +70,22 @@ out="\$RANKSLAM_VM_OUT"
 chrt -f 60 candump -D -d -r 8388608 -L -n 1000000 vcan0 > "\$out/bus.log" 2> "\$out/candump.err" &
 dump=\$!
 sleep 0.3
-"$rankslam" run --config "$work/robot.yaml" --mode baseline --frame camera --out "\$out/run" > "\$out/run.log" 2>&1 &
+notify_env=""
+if [ -n "$listener" ]; then
+  "$listener" /tmp/rankslam-notify.sock > "\$out/notify.log" 2> "\$out/notify.err" &
+  listen=\$!
+  for i in \$(seq 1 50); do grep -q listening "\$out/notify.log" && break; sleep 0.1; done
+  notify_env="NOTIFY_SOCKET=/tmp/rankslam-notify.sock WATCHDOG_USEC=1000000"
+fi
+env \$notify_env "$rankslam" run --config "$work/robot.yaml" --mode baseline --frame camera --out "\$out/run" > "\$out/run.log" 2>&1 &
 run=\$!
 for i in \$(seq 1 1200); do
   grep -q "end of stream" "\$out/run.log" && break
   kill -0 \$run 2>/dev/null || break
   sleep 0.1
 done
+at_end=0
+[ -z "$listener" ] || at_end=\$(grep -c '^WATCHDOG=1\$' "\$out/notify.log")
 hog_pids=""
 for i in \$(seq 1 $hogs); do
   nice -n -20 timeout $stress_s sh -c 'while :; do :; done' &
@@ -101,6 +117,19 @@ check=\$?
 grep -c "^(.*) vcan0 101#" "\$out/bus.log" | sed 's/^/wheel frames on the bus: /'
 grep -c "^(" "\$out/bus.log" | sed 's/^/frames on the bus: /'
 [ \$code -eq 130 ] || { echo "FAIL: rankslam run exit code \$code"; exit 1; }
+if [ -n "$listener" ]; then
+  kill \$listen
+  notes=\$(grep -v '^listening\$' "\$out/notify.log")
+  echo "notifications: \$(echo "\$notes" | sort | uniq -c | tr '\n' ' ')"
+  # WATCHDOG=1 may come during set-up, once the camera is open; READY=1 before anything else.
+  [ "\$(echo "\$notes" | grep -v '^WATCHDOG=1\$' | head -1)" = READY=1 ] || { echo "FAIL: READY=1 does not come first"; check=1; }
+  [ "\$(echo "\$notes" | tail -1)" = STOPPING=1 ] || { echo "FAIL: the last notification is not STOPPING=1"; check=1; }
+  # The run goes on 1.5 s past the recording's end, without camera frames: three periods of 0.5 s.
+  after_end=\$(( \$(echo "\$notes" | grep -c '^WATCHDOG=1\$') - at_end ))
+  echo "WATCHDOG=1 after the end of the recording: \$after_end"
+  [ "\$after_end" -ge 2 ] || { echo "FAIL: fewer than 2 WATCHDOG=1 after the end of the recording"; check=1; }
+  grep -q "^status: last " "\$out/run.log" || { echo "FAIL: no status line in the run's output"; check=1; }
+fi
 exit \$check
 SH
 exec "$here/run-in-vm.sh" /bin/sh "$work/in-vm.sh"

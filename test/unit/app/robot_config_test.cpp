@@ -91,6 +91,29 @@ TEST_F(RobotConfigTest, ExampleRobotConfigurationLoads) {
   ASSERT_EQ(load_robot_config(example, config), "");
   EXPECT_EQ(config.can_interface, "can0");
   EXPECT_DOUBLE_EQ(config.output.pose_rate_hz, 50.0);
+  // Installed as /etc/rankslam/robot.yaml: the live sensor, not a recording that is not there.
+  EXPECT_EQ(config.camera_source, CameraSource::kOpenNI2);
+  EXPECT_EQ(config.camera_location, "");
+  EXPECT_DOUBLE_EQ(config.status_interval_s, 60.0);
+
+  RobotConfig replay;
+  ASSERT_EQ(load_robot_config(std::filesystem::path(RANKSLAM_SOURCE_DIR) / "deploy/config/replay-robot.yaml", replay), "");
+  EXPECT_EQ(replay.camera_source, CameraSource::kReplay);
+  EXPECT_EQ(replay.can_interface, "vcan0");
+}
+
+TEST_F(RobotConfigTest, StatusIntervalIsRangeChecked) {
+  RobotConfig config;
+  EXPECT_EQ(load("camera: {source: 'replay:r'}\noutput: {status_interval_s: 0}\n", config), "");
+  EXPECT_DOUBLE_EQ(config.status_interval_s, 0.0);
+  const auto error_of = [&](const std::string& text) {
+    RobotConfig rejected;
+    return load(text, rejected);
+  };
+  EXPECT_NE(error_of("camera: {source: 'replay:r'}\noutput: {status_interval_s: -1}\n").find("output.status_interval_s"),
+            std::string::npos);
+  EXPECT_NE(error_of("camera: {source: 'replay:r'}\noutput: {status_interval_s: 86401}\n").find("output.status_interval_s"),
+            std::string::npos);
 }
 
 }  // namespace

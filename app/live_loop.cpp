@@ -1,0 +1,90 @@
+#include "live_loop.hpp"
+
+#include "rankslam/replay/replay_camera.hpp"
+#include "rankslam/systemd/service_notifier.hpp"
+
+#include <algorithm>
+#include <iostream>
+#include <optional>
+#include <thread>
+
+namespace rankslam::app {
+
+bool run_live_loop(const LiveLoopParts& parts, const std::function<bool()>& stop) {
+  hal::DepthCamera& camera = *parts.camera;
+  FramePipeline& pipeline = *parts.pipeline;
+  nav::PoseMailbox& mailbox = *parts.mailbox;
+  const Eigen::Isometry3d T_base_cam = parts.T_base_cam;
+  const Eigen::Isometry3d T_cam_base = T_base_cam.inverse();
+  const hal::MonotonicClock clock;
+  StatusTotals totals;
+  const auto update_totals = [&] {
+    totals.counts = pipeline.status_counts();
+    totals.keyframes = pipeline.loop().keyframes();
+  };
+  update_totals();
+  if (parts.status_line != nullptr) parts.status_line->start(clock.now_ns(), totals);
+  if (parts.notifier != nullptr) parts.notifier->ready(clock.now_ns());
+
+  hal::RgbdFrame frame;
+  bool interrupted = false;
+  std::optional<std::chrono::steady_clock::time_point> end_time;
+  for (;;) {
+    const std::int64_t turn_ns = clock.now_ns();
+    if (parts.notifier != nullptr) parts.notifier->alive(turn_ns);
+    if (parts.status_line != nullptr) {
+      update_totals();
+      (void)parts.status_line->tick(turn_ns, totals);
+    }
+    if (stop()) {
+      interrupted = true;
+      break;
+    }
+    if (end_time) {
+      if (parts.exit_after_end_s >= 0.0 &&
+          std::chrono::steady_clock::now() - *end_time >= std::chrono::duration<double>(parts.exit_after_end_s)) {
+        break;
+      }
+      std::this_thread::sleep_for(std::chrono::milliseconds(20));
+      continue;
+    }
+    const hal::ReadStatus status = camera.read(frame, parts.read_wait);
+    if (parts.replay_camera != nullptr) {
+      for (const auto& warning : parts.replay_camera->take_warnings()) std::cerr << "warning: " << warning << "\n";
+    }
+    if (status == hal::ReadStatus::kEndOfStream) {
+      std::cout << "end of stream after " << pipeline.trajectory().size() << " frames" << std::endl;
+      end_time = std::chrono::steady_clock::now();
+      mailbox.set_end_of_stream();
+      continue;
+    }
+    if (status != hal::ReadStatus::kOk) {
+      ++totals.empty_reads;
+      mailbox.set_camera_fault(status == hal::ReadStatus::kFault);
+      continue;
+    }
+    const std::int64_t capture_ns = clock.now_ns();
+    const slam::FrameResult result = pipeline.process(frame);
+    const bool registered =
+        result.status == slam::FrameStatus::kTracking || result.status == slam::FrameStatus::kFirstFrame;
+    nav::PoseSample sample;
+    // The map frame is the base frame at the first camera frame.
+    sample.T_map_base = T_base_cam * result.T_world_cam * T_cam_base;
+    sample.capture_ns = capture_ns;
+    sample.frame_sequence = frame.sequence;
+    sample.registered = registered;
+    sample.wheels_only = result.status == slam::FrameStatus::kWheels;
+    sample.wheel_slip = result.wheels.vision_trusted;
+    if (result.status != slam::FrameStatus::kFirstFrame && result.features > 0) {
+      sample.inlier_percent = static_cast<std::uint8_t>(std::min(100, 100 * result.inliers / result.features));
+    }
+    // The correction in base frames: T_map_base = T_base_cam * T_world_cam * T_cam_base.
+    const Eigen::Isometry3d correction = T_base_cam * result.map_correction * T_cam_base;
+    mailbox.post(sample, result.graph_applied ? &correction : nullptr,
+                 parts.wheels ? std::optional<std::int64_t>(pipeline.wheel_stamp_ns(frame)) : std::nullopt);
+  }
+  if (parts.notifier != nullptr) parts.notifier->stopping();
+  return interrupted;
+}
+
+}  // namespace rankslam::app
