@@ -146,6 +146,7 @@ int run_live(const RunArgs& args) {
   nav::PoseOutputOptions output_options;
   output_options.broadcast = robot.output;
   output_options.wheel_can_id = wheel_can_id;
+  if (wheels.enabled()) output_options.wheel_noise = {wheel_config.wheel_variance_per_m, calibration.wheels->track_width_m};
   nav::PoseOutputCounters pose_counters;
   nav::WheelInputCounters wheel_counters;
   hal::CanBusStatistics bus_statistics;
@@ -233,6 +234,10 @@ int run_live(const RunArgs& args) {
     sample.wheel_slip = result.wheels.vision_trusted;
     if (result.status != slam::FrameStatus::kFirstFrame && result.features > 0) {
       sample.inlier_percent = static_cast<std::uint8_t>(std::min(100, 100 * result.inliers / result.features));
+    }
+    if (const auto& sigmas = pipeline.sigmas()) {
+      sample.position_sigma_m = sigmas->position_m;
+      sample.yaw_sigma_deg = sigmas->yaw_deg;
     }
     // The correction in base frames: T_map_base = T_base_cam * T_world_cam * T_cam_base.
     const Eigen::Isometry3d correction = T_base_cam * result.map_correction * T_cam_base;
