@@ -1,6 +1,8 @@
 #include "frame_pipeline.hpp"
 
+#include "rankslam/core/lie.hpp"
 #include "rankslam/core/stopwatch.hpp"
+#include "rankslam/nav/pose_frames.hpp"
 
 namespace rankslam::app {
 
@@ -28,7 +30,7 @@ bool ReceivedWheels::prior_for(std::int64_t stamp_ns, nav::MotionPrior& prior) {
 
 FramePipeline::FramePipeline(const slam::SlamConfig& config, const hal::Calibration& calibration, WheelSource* wheels,
                              const PipelineOptions& options)
-    : options_(options), loop_(config, calibration), wheels_(wheels) {
+    : options_(options), T_base_cam_(calibration.rgb.T_base_cam), loop_(config, calibration), wheels_(wheels) {
   loop_.set_synchronous_backend(options.synchronous_backend);
   trajectory_.reserve(options.max_frames);
   if (options.frame_log) {
@@ -50,6 +52,21 @@ slam::FrameResult FramePipeline::process(const hal::RgbdFrame& frame) {
   slam::FrameResult result = loop_.process(frame, prior);
   const double frame_ms = elapsed_ms(start);
   status_counts_.add(result);
+  if (result.graph_applied) T_world_odom_ = lie::renormalised(result.map_correction * T_world_odom_);
+  const Eigen::Isometry3d T_odom_cam = T_world_odom_.inverse() * result.T_world_cam;
+  T_odom_base_ = T_base_cam_ * T_odom_cam * T_base_cam_.inverse();
+  sigmas_.reset();
+  // The covariance is of the pose since the first frame, which the corrections do not change:
+  // the odom pose's.
+  if (result.odom_covariance_valid) {
+    // As PoseQuality carries them: quantised, saturated.
+    const nav::PoseSigmas sigmas = nav::pose_sigmas(T_odom_cam, result.odom_covariance, T_base_cam_);
+    nav::PoseQuality quality;
+    quality.position_sigma_m = sigmas.position_m;
+    quality.yaw_sigma_deg = sigmas.yaw_deg;
+    const auto sent = nav::decode_pose_quality(nav::encode_pose_quality(quality, 0));
+    if (sent && sent->position_sigma_m && sent->yaw_sigma_deg) sigmas_ = nav::PoseSigmas{*sent->position_sigma_m, *sent->yaw_sigma_deg};
+  }
   if (result.status == slam::FrameStatus::kFailed || result.status == slam::FrameStatus::kWheels) ++failed_frames_;
   const bool kept = trajectory_.size() < options_.max_frames;
   if (kept) {
@@ -61,6 +78,8 @@ slam::FrameResult FramePipeline::process(const hal::RgbdFrame& frame) {
     frame_ms_.push_back(frame_ms);
     for (std::size_t i = 0; i < slam::StageTimes::kCount; ++i) stage_ms_[i].push_back(result.times.ms[i]);
     frame_records_.push_back(eval::frame_record(frame.stamp_s, result));
+    frame_records_.back().T_odom_base = T_odom_base_;
+    frame_records_.back().sigmas = sigmas_;
     keyframe_links_.push_back({result.keyframe_node, result.keyframe_generation, result.T_keyframe_cam});
     for (auto i = static_cast<int>(closures_.size()); i < loop_.loop_closures(); ++i) {
       if (const slam::LoopClosure* closure = loop_.loop_closure(i); closure != nullptr) closures_.push_back(*closure);

@@ -6,6 +6,7 @@
 #include "rankslam/eval/trajectory.hpp"
 #include "rankslam/hal/interfaces.hpp"
 #include "rankslam/nav/live_wheels.hpp"
+#include "rankslam/nav/pose_uncertainty.hpp"
 #include "rankslam/nav/wheel_prior.hpp"
 #include "rankslam/replay/replay_can_bus.hpp"
 #include "rankslam/slam/slam_loop.hpp"
@@ -89,6 +90,11 @@ class FramePipeline {
   /// Frames neither registered nor first: the wheels carried them, or nothing did.
   [[nodiscard]] int failed_frames() const { return failed_frames_; }
   [[nodiscard]] bool wheels_used() const { return wheels_ != nullptr; }
+  /// The base in the odom frame at the last processed frame (the base at the first frame; the
+  /// map corrections do not move it) and its standard deviations, as PoseQuality sends them
+  /// (none: unknown).
+  [[nodiscard]] const Eigen::Isometry3d& T_odom_base() const { return T_odom_base_; }
+  [[nodiscard]] const std::optional<nav::PoseSigmas>& sigmas() const { return sigmas_; }
 
   // With frame_log:
   [[nodiscard]] const std::vector<eval::FrameRecord>& frame_records() const { return frame_records_; }
@@ -104,6 +110,11 @@ class FramePipeline {
   };
 
   PipelineOptions options_;
+  Eigen::Isometry3d T_base_cam_;
+  /// The map corrections applied so far (world frames): T_world_cam = T_world_odom·T_odom_cam.
+  Eigen::Isometry3d T_world_odom_ = Eigen::Isometry3d::Identity();
+  Eigen::Isometry3d T_odom_base_ = Eigen::Isometry3d::Identity();
+  std::optional<nav::PoseSigmas> sigmas_;
   slam::SlamLoop loop_;
   WheelSource* wheels_;
   nav::MotionPrior prior_;

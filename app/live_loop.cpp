@@ -78,6 +78,10 @@ bool run_live_loop(const LiveLoopParts& parts, const std::function<bool()>& stop
     if (result.status != slam::FrameStatus::kFirstFrame && result.features > 0) {
       sample.inlier_percent = static_cast<std::uint8_t>(std::min(100, 100 * result.inliers / result.features));
     }
+    if (const auto& sigmas = pipeline.sigmas()) {
+      sample.position_sigma_m = sigmas->position_m;
+      sample.yaw_sigma_deg = sigmas->yaw_deg;
+    }
     // The correction in base frames: T_map_base = T_base_cam * T_world_cam * T_cam_base.
     const Eigen::Isometry3d correction = T_base_cam * result.map_correction * T_cam_base;
     mailbox.post(sample, result.graph_applied ? &correction : nullptr,

@@ -182,7 +182,6 @@ int run_replay(const ReplayArgs& args) {
     return eval::write_tum_trajectory(path, in_output_frame(estimate, output_frame, rgb.T_base_cam));
   }));
   report_error(outputs.add("map.ply", std::string_view(loop.map().to_ply(output_from_world(output_frame, rgb.T_base_cam)))));
-  report_error(outputs.add("frames.csv", std::string_view(eval::frames_csv(pipeline.frame_records()))));
 
   std::optional<eval::EvalResult> accuracy;
   std::optional<eval::Trajectory> ground_truth;
@@ -202,6 +201,11 @@ int run_replay(const ReplayArgs& args) {
       }
     }
   }
+  // The odom pose's error against the ground truth beside the sigmas sent with it.
+  std::vector<eval::FrameRecord> frame_records = pipeline.frame_records();
+  if (ground_truth) eval::add_odom_errors(frame_records, *ground_truth, recording.calibration.rgb.T_base_cam);
+  const eval::SigmaCoverage coverage = eval::sigma_coverage(frame_records);
+  report_error(outputs.add("frames.csv", std::string_view(eval::frames_csv(frame_records))));
   std::vector<eval::RelativePoseError> closure_errors;
   if (ground_truth && !closures.empty()) {
     std::vector<eval::StampedRelativePose> measured;
@@ -275,6 +279,19 @@ int run_replay(const ReplayArgs& args) {
   } else {
     json.null("ate_rmse_m").null("rpe_trans_m_per_s").null("rpe_rot_deg_per_s");
   }
+  if (coverage.frames > 0) {
+    json.begin_object("pose_sigma");
+    json.integer("frames", coverage.frames);
+    json.number("position_coverage_3sigma", coverage.position_coverage);
+    json.number("yaw_coverage_3sigma", coverage.yaw_coverage);
+    json.number("median_position_sigma_m", coverage.median_position_sigma_m);
+    json.number("median_position_error_m", coverage.median_position_error_m);
+    json.number("median_yaw_sigma_deg", coverage.median_yaw_sigma_deg);
+    json.number("median_yaw_error_deg", coverage.median_yaw_error_deg);
+    json.end_object();
+  } else {
+    json.null("pose_sigma");
+  }
   eval::write_percentiles(json, "frame_ms", eval::percentiles(pipeline.frame_ms()));
   json.begin_object("stage_ms");
   for (std::size_t i = 0; i < slam::StageTimes::kCount; ++i) {
@@ -314,6 +331,11 @@ int run_replay(const ReplayArgs& args) {
     std::printf("\n");
   } else {
     std::printf("ATE n/a (%s)\n", no_accuracy_reason.c_str());
+  }
+  if (coverage.frames > 0) {
+    std::printf("odom pose within 3 sigma: position %.1f %%, yaw %.1f %% of %d frames (median sigma %.4f m, error %.4f m)\n",
+                100.0 * coverage.position_coverage, 100.0 * coverage.yaw_coverage, coverage.frames,
+                coverage.median_position_sigma_m, coverage.median_position_error_m);
   }
   std::printf("outputs in %s\n", args.out.string().c_str());
   return exit_code;

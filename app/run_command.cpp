@@ -193,6 +193,7 @@ int run_live(const RunArgs& args) {
   nav::PoseOutputOptions output_options;
   output_options.broadcast = robot.output;
   output_options.wheel_can_id = wheel_can_id;
+  if (wheels.enabled()) output_options.wheel_noise = {wheel_config.wheel_variance_per_m, calibration.wheels->track_width_m};
   nav::PoseOutputCounters pose_counters;
   nav::WheelInputCounters wheel_counters;
   hal::CanBusStatistics bus_statistics;

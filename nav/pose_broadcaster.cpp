@@ -1,5 +1,7 @@
 #include "rankslam/nav/pose_broadcaster.hpp"
 
+#include "rankslam/nav/pose_uncertainty.hpp"
+
 #include <algorithm>
 #include <cmath>
 #include <limits>
@@ -39,7 +41,8 @@ std::string validate(const PoseOutputConfig& config) {
   return {};
 }
 
-PoseBroadcaster::PoseBroadcaster(const PoseOutputConfig& config, hal::CanBus& bus, const hal::Clock& clock)
+PoseBroadcaster::PoseBroadcaster(const PoseOutputConfig& config, hal::CanBus& bus, const hal::Clock& clock,
+                                 const WheelNoise& wheel_noise)
     : config_(config),
       bus_(bus),
       clock_(clock),
@@ -50,7 +53,9 @@ PoseBroadcaster::PoseBroadcaster(const PoseOutputConfig& config, hal::CanBus& bu
       next_pose_ns_(start_ns_),
       next_heartbeat_ns_(start_ns_),
       last_frame_ns_(start_ns_),
-      last_heartbeat_ns_(start_ns_) {}
+      last_heartbeat_ns_(start_ns_) {
+  wheel_noise_ = wheel_noise;
+}
 
 void PoseBroadcaster::update(const PoseSample& sample) {
   T_map_odom_ = sample.map_correction * T_map_odom_;
@@ -59,6 +64,23 @@ void PoseBroadcaster::update(const PoseSample& sample) {
   T_map_odom_.linear() = rotation.normalized().toRotationMatrix();
   latest_ = sample;
   wheel_motion_.setIdentity();
+  // The velocity from the odom pose's change since the previous frame (the odom frame does not
+  // jump on a correction, so neither does the velocity).
+  const Eigen::Isometry3d T_odom_base_now(T_map_odom_.inverse() * sample.T_map_base);
+  sample_velocity_.reset();
+  if (previous_odom_) {
+    const double dt_s = static_cast<double>(sample.capture_ns - previous_odom_->second) * 1e-9;
+    if (dt_s > 0.0 && dt_s <= kMaxVelocityInterval_s) {
+      const Eigen::Isometry3d step = previous_odom_->first.inverse() * T_odom_base_now;
+      const PlanarPose change = to_planar_pose(step);
+      PoseVelocity velocity;
+      velocity.vx_mps = step.translation().x() / dt_s;
+      velocity.vy_mps = step.translation().y() / dt_s;
+      velocity.yaw_rate_dps = change.yaw_deg / dt_s;
+      sample_velocity_ = velocity;
+    }
+  }
+  previous_odom_.emplace(T_odom_base_now, sample.capture_ns);
   last_frame_ns_ = clock_.now_ns();
   consecutive_failures_ = sample.registered || sample.wheels_only ? 0 : consecutive_failures_ + 1;
   ++frames_since_heartbeat_;
@@ -96,6 +118,11 @@ void PoseBroadcaster::set_wheel_motion(const Eigen::Isometry3d& T_capture_now) {
   if (config_.wheel_propagation) wheel_motion_ = T_capture_now;
 }
 
+std::optional<PoseVelocity> PoseBroadcaster::velocity() const {
+  if (status() == PoseStatus::kLost) return std::nullopt;
+  return sample_velocity_;
+}
+
 Eigen::Isometry3d PoseBroadcaster::T_odom_base() const {
   if (!latest_) return Eigen::Isometry3d::Identity();
   return Eigen::Isometry3d(T_map_odom_.inverse() * latest_->T_map_base * wheel_motion_);
@@ -115,12 +142,25 @@ void PoseBroadcaster::send_pose_cycle(std::int64_t now_ns) {
     const std::int64_t age_ms = std::max<std::int64_t>(0, (now_ns - latest_->capture_ns) / 1'000'000);
     quality.age_ms = static_cast<std::uint16_t>(std::min<std::int64_t>(age_ms, std::numeric_limits<std::uint16_t>::max()));
     quality.inlier_percent = latest_->inlier_percent;
+    // Unknown stays unknown: no estimate while initialising, none worth sending when lost.
+    if (current != PoseStatus::kLost && latest_->position_sigma_m && latest_->yaw_sigma_deg) {
+      PoseSigmas sigmas{*latest_->position_sigma_m, *latest_->yaw_sigma_deg};
+      // The wheels moved the pose on since the frame: their noise adds to it.
+      const Eigen::AngleAxisd turn(wheel_motion_.rotation());
+      sigmas = grown_by_wheels(sigmas, wheel_motion_.translation().head<2>().norm(), std::abs(turn.angle()),
+                               wheel_noise_.wheel_variance_per_m, wheel_noise_.track_width_m);
+      quality.position_sigma_m = sigmas.position_m;
+      quality.yaw_sigma_deg = sigmas.yaw_deg;
+    }
   }
-  // The SLAM loop does not estimate its covariance yet: sigmas stay "unknown" rather than guessed.
+  PoseVelocity velocity;
+  if (const auto estimate = this->velocity()) velocity = *estimate;
+  velocity.counter = pose_counter_;
   send(encode_pose_xy_yaw(xy_yaw_of(pose, pose_counter_), now_ns));
   send(encode_pose_z_roll_pitch(z_roll_pitch_of(pose, pose_counter_), now_ns));
   send(encode_pose_xy_yaw(xy_yaw_of(map_odom, pose_counter_), now_ns, kMapOdomXYYawId));
   send(encode_pose_z_roll_pitch(z_roll_pitch_of(map_odom, pose_counter_), now_ns, kMapOdomZRollPitchId));
+  send(encode_pose_velocity(velocity, now_ns));
   send(encode_pose_quality(quality, now_ns));
   pose_counter_ = static_cast<std::uint8_t>((pose_counter_ + 1U) % kPoseCounterModulus);
   ++counters_.pose_cycles;

@@ -75,6 +75,17 @@ std::uint64_t saturate(double value, double scale, std::uint64_t unknown) {
   return count >= static_cast<double>(unknown - 1) ? unknown - 1 : static_cast<std::uint64_t>(count);
 }
 
+/// A velocity signal: quantised, saturating at ±32767 counts; unknown (and not finite) is -32768.
+std::int64_t velocity_count(const std::optional<double>& value, double scale) {
+  if (!value || !std::isfinite(*value)) return kVelocityUnknown;
+  return static_cast<std::int64_t>(std::clamp(std::round(*value / scale), -32767.0, 32767.0));
+}
+
+std::optional<double> velocity_value(std::int64_t count, double scale) {
+  if (count == kVelocityUnknown) return std::nullopt;
+  return static_cast<double>(count) * scale;
+}
+
 }  // namespace
 
 PlanarPose to_planar_pose(const Eigen::Isometry3d& T) {
@@ -143,6 +154,15 @@ hal::CanFrame encode_pose_quality(const PoseQuality& quality, std::int64_t stamp
   return store_word(word, kPoseQualityId, stamp_ns);
 }
 
+hal::CanFrame encode_pose_velocity(const PoseVelocity& velocity, std::int64_t stamp_ns) {
+  std::uint64_t word = 0;
+  put_signed(word, 0, 16, velocity_count(velocity.vx_mps, kVelocityScale_mps));
+  put_signed(word, 16, 16, velocity_count(velocity.vy_mps, kVelocityScale_mps));
+  put_signed(word, 32, 16, velocity_count(velocity.yaw_rate_dps, kYawRateScale_dps));
+  put_unsigned(word, 60, 4, velocity.counter);
+  return store_word(word, kPoseVelocityId, stamp_ns);
+}
+
 hal::CanFrame encode_heartbeat(const Heartbeat& heartbeat, std::int64_t stamp_ns) {
   std::uint64_t word = 0;
   put_unsigned(word, 0, 32, heartbeat.uptime_ms);
@@ -196,6 +216,17 @@ std::optional<PoseQuality> decode_pose_quality(const hal::CanFrame& frame) {
     quality.inlier_percent = static_cast<std::uint8_t>(ratio);
   }
   return quality;
+}
+
+std::optional<PoseVelocity> decode_pose_velocity(const hal::CanFrame& frame) {
+  if (!valid(frame, kPoseVelocityId)) return std::nullopt;
+  const std::uint64_t word = load_word(frame);
+  PoseVelocity velocity;
+  velocity.vx_mps = velocity_value(get_signed(word, 0, 16), kVelocityScale_mps);
+  velocity.vy_mps = velocity_value(get_signed(word, 16, 16), kVelocityScale_mps);
+  velocity.yaw_rate_dps = velocity_value(get_signed(word, 32, 16), kYawRateScale_dps);
+  velocity.counter = static_cast<std::uint8_t>(get_unsigned(word, 60, 4));
+  return velocity;
 }
 
 std::optional<Heartbeat> decode_heartbeat(const hal::CanFrame& frame) {

@@ -47,7 +47,7 @@ PoseOutput::PoseOutput(const PoseOutputOptions& options, hal::CanBus& bus, const
       clock_(clock),
       mailbox_(mailbox),
       wheels_(wheels),
-      broadcaster_(options.broadcast, bus, clock) {}
+      broadcaster_(options.broadcast, bus, clock, options.wheel_noise) {}
 
 void PoseOutput::run(const std::atomic<bool>& stop) {
   wheels_.mark_receiving();

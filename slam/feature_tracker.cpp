@@ -103,6 +103,7 @@ void FeatureTracker::track(const hal::RgbdFrame& frame, const nav::MotionPrior* 
     new_reference_ = true;
     current_covariance_.setZero();
     step_covariance_.setZero();
+    odom_covariance_.setZero();
     return;
   }
   const TrackedFrame& previous = frames_[static_cast<std::size_t>(previous_)];
@@ -111,6 +112,50 @@ void FeatureTracker::track(const hal::RgbdFrame& frame, const nav::MotionPrior* 
                                                                                    : previous_covariance_,
                    result);
   motion_.finish(previous.T_world_cam, prior, result);
+  chain_odom_covariance(target, prior, result);
+}
+
+void FeatureTracker::chain_odom_covariance(const TrackedFrame* target, const nav::MotionPrior* prior,
+                                           const FrameResult& result) {
+  const TrackedFrame& previous = frames_[static_cast<std::size_t>(previous_)];
+  const bool wheels_carry = prior != nullptr && (result.wheels.fused || result.status == FrameStatus::kWheels);
+  // Registered alone: the registration's own covariance on top of its target's. Where the wheels
+  // joined the registration (the arbiter's covariance-weighted combination) or carried the frame,
+  // the pose is the previous frame's moved by the wheel motion, corrected at most by vision: the
+  // wheel prior's covariance bounds its step (the combination's is smaller; this is the bound).
+  // Extrapolated (no registration, no wheels): the floor the tracker chains for such frames.
+  const TrackedFrame& from = (target != nullptr && !wheels_carry) ? *target : previous;
+  Matrix6d step = step_covariance_;
+  if (target != nullptr && !wheels_carry) {
+    // The a-posteriori variance factor (MSSE noise scale s, docs/methods.md §1): inliers that fit
+    // s times worse than their predicted noise make the registration s² times less certain. The
+    // registration's modelled information (the surfaces' and features' in fused mode) does not
+    // include it; the pose graph's edges take it the same way (Backend::registration_information).
+    step *= std::max(1.0, result.noise_scale * result.noise_scale);
+    // A floor: the registration's translation is no more certain than one of its features'
+    // predicted position noise (the median: the sensor's a·z² and the keypoint's, at the frame's
+    // typical depth). The model's 1/n over the inliers presumes independent errors; depth errors
+    // of the same wall and the same depth quantisation do not average out.
+    const std::vector<float>& sigmas = frames_[static_cast<std::size_t>(current_)].features.sigma_m;
+    if (!sigmas.empty()) {
+      const std::size_t stride = (sigmas.size() + median_sample_.size() - 1) / median_sample_.size();
+      std::size_t count = 0;
+      for (std::size_t i = 0; i < sigmas.size() && count < median_sample_.size(); i += stride) median_sample_[count++] = sigmas[i];
+      const auto middle = median_sample_.begin() + static_cast<std::ptrdiff_t>(count / 2);
+      std::nth_element(median_sample_.begin(), middle, median_sample_.begin() + static_cast<std::ptrdiff_t>(count));
+      const double floor_m = static_cast<double>(*middle);
+      step.diagonal().tail<3>().array() += floor_m * floor_m;
+    }
+  }
+  if (wheels_carry) {
+    // The prior's ξ is on the left in the previous frame: exp(ξ)·T_p_c = T_p_c·exp(Ad(T_c_p)·ξ).
+    const Matrix6d to_right = lie::adjoint((previous.T_world_cam.inverse() * result.T_world_cam).inverse());
+    step = to_right * prior->covariance * to_right.transpose();
+  }
+  // T_w_f·Exp(ξ_f)·T_f_c·Exp(ξ) gives ξ_c = Ad(T_f_c⁻¹)·ξ_f + ξ.
+  const Matrix6d carry = lie::adjoint((from.T_world_cam.inverse() * result.T_world_cam).inverse());
+  const Matrix6d odom = carry * from.odom_covariance * carry.transpose() + step;
+  odom_covariance_ = 0.5 * (odom + odom.transpose());
 }
 
 const FeatureTracker::TrackedFrame* FeatureTracker::register_current(const hal::RgbdFrame& frame,
@@ -259,6 +304,9 @@ void FeatureTracker::correct(const Eigen::Isometry3d& correction) {
 
 void FeatureTracker::end_frame(FrameResult& result) {
   frames_[static_cast<std::size_t>(current_)].T_world_cam = result.T_world_cam;
+  frames_[static_cast<std::size_t>(current_)].odom_covariance = odom_covariance_;
+  result.odom_covariance = odom_covariance_;
+  result.odom_covariance_valid = true;
   if (chain_restarted_ && !new_reference_ && previous_ >= 0) {
     // The reference is older than the key-frame this frame became: its pose relative to the
     // key-frame is the inverse of this frame's registration, T_K_r = (T_r_K·exp(b))⁻¹ =

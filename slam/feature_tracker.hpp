@@ -38,6 +38,8 @@ class FeatureTracker final : public Tracker {
     Eigen::Isometry3d T_world_cam = Eigen::Isometry3d::Identity();
     /// Velocity at the frame, for its rolling-shutter correction.
     Registrar::Velocity velocity = Registrar::Velocity::Zero();
+    /// Covariance of the pose accumulated since the first frame (FrameResult::odom_covariance).
+    Matrix6d odom_covariance = Matrix6d::Zero();
   };
 
   /// Extracts the current frame's features into the free slot.
@@ -52,6 +54,10 @@ class FeatureTracker final : public Tracker {
   /// relative to the latest key-frame is `target_covariance` (null: not registered, and
   /// `target_covariance` is the previous frame's).
   void chain_covariance(const TrackedFrame* target, const Matrix6d& target_covariance, const FrameResult& result);
+  /// Sets odom_covariance_: the frame's pose covariance since the first frame, from the frame its
+  /// pose was measured from (the registration's target, or the previous frame where the wheels
+  /// carried or joined it, or the motion model extrapolated it) and that step's own covariance.
+  void chain_odom_covariance(const TrackedFrame* target, const nav::MotionPrior* prior, const FrameResult& result);
   [[nodiscard]] OrbFrontend& orb_for(ImageSource source) {
     return source == ImageSource::kInfrared ? infrared_orb_ : orb_;
   }
@@ -88,6 +94,10 @@ class FeatureTracker final : public Tracker {
   Matrix6d step_covariance_ = Matrix6d::Zero();
   /// The current frame became a stored key-frame (the chain restarts at it).
   bool chain_restarted_ = false;
+  /// The current frame's covariance since the first frame, for FrameResult::odom_covariance.
+  Matrix6d odom_covariance_ = Matrix6d::Zero();
+  /// Features' predicted noise, sampled for its median (no allocation per frame).
+  std::array<float, 256> median_sample_{};
 };
 
 }  // namespace rankslam::slam

@@ -42,6 +42,7 @@ struct Cycle {
   nav::PoseZRollPitch z_roll_pitch;
   nav::PoseXYYaw map_odom_xy_yaw;
   nav::PoseZRollPitch map_odom_z_roll_pitch;
+  nav::PoseVelocity velocity;
   nav::PoseQuality quality;
   /// The newest wheel frame on the bus before the cycle, as an index into the recording's CAN
   /// frames (-1: none yet).
@@ -175,9 +176,14 @@ int main(int argc, char** argv) {
       if (stage != 3 || !decoded || decoded->counter != partial->xy_yaw.counter) { broken(frame->stamp_ns); stage = 0; continue; }
       partial->map_odom_z_roll_pitch = *decoded;
       stage = 4;
+    } else if (frame->id == nav::kPoseVelocityId) {
+      const auto decoded = nav::decode_pose_velocity(*frame);
+      if (stage != 4 || !decoded || decoded->counter != partial->xy_yaw.counter) { broken(frame->stamp_ns); stage = 0; continue; }
+      partial->velocity = *decoded;
+      stage = 5;
     } else if (frame->id == nav::kPoseQualityId) {
       const auto decoded = nav::decode_pose_quality(*frame);
-      if (stage != 4 || !decoded || decoded->counter != partial->xy_yaw.counter) { broken(frame->stamp_ns); stage = 0; continue; }
+      if (stage != 5 || !decoded || decoded->counter != partial->xy_yaw.counter) { broken(frame->stamp_ns); stage = 0; continue; }
       partial->quality = *decoded;
       cycles.push_back(*partial);
       stage = 0;
@@ -292,6 +298,31 @@ int main(int argc, char** argv) {
   double max_yaw_deg = 0.0;
   std::set<std::uint8_t> frames_seen;
   std::size_t compared = 0;
+  // The uncertainty and the velocity: unknown where there is no estimate, sent where there is.
+  int sigma_cycles = 0;
+  int velocity_cycles = 0;
+  for (const Cycle& cycle : cycles) {
+    const nav::PoseStatus status = cycle.quality.status;
+    const bool sigmas = cycle.quality.position_sigma_m && cycle.quality.yaw_sigma_deg;
+    const bool velocity = cycle.velocity.vx_mps && cycle.velocity.vy_mps && cycle.velocity.yaw_rate_dps;
+    if ((status == nav::PoseStatus::kInitialising || status == nav::PoseStatus::kLost) && (sigmas || velocity)) {
+      fail("a pose cycle INITIALISING or LOST carries sigmas or a velocity");
+      break;
+    }
+    if (status == nav::PoseStatus::kTracking && !sigmas) {
+      fail("a TRACKING pose cycle carries unknown sigmas");
+      break;
+    }
+    if (velocity && (std::hypot(*cycle.velocity.vx_mps, *cycle.velocity.vy_mps) > 5.0 ||
+                     std::abs(*cycle.velocity.yaw_rate_dps) > 360.0)) {
+      fail("implausible velocity in a pose cycle");
+      break;
+    }
+    sigma_cycles += sigmas ? 1 : 0;
+    velocity_cycles += velocity ? 1 : 0;
+  }
+  std::printf("pose cycles with sigmas %d, with a velocity %d, of %zu\n", sigma_cycles, velocity_cycles, cycles.size());
+  if (velocity_cycles == 0) fail("no pose cycle carries a velocity");
   for (const Cycle& cycle : cycles) {
     if (cycle.quality.status == nav::PoseStatus::kInitialising) continue;
     const std::size_t index = cycle.quality.frame_counter;

@@ -51,6 +51,49 @@ TEST(RunReport, FramesCsvIsCommaSeparatedWithOneHeaderLine) {
       << first;
 }
 
+TEST(RunReport, SigmaCoverageCountsErrorsWithinThreeSigma) {
+  std::vector<FrameRecord> records(4);
+  for (std::size_t i = 0; i < records.size(); ++i) {
+    records[i].sigmas = nav::PoseSigmas{0.01, 1.0};
+    records[i].gt_position_error_m = 0.01 * static_cast<double>(i + 1);  // 1, 2, 3, 4 sigma
+    records[i].gt_yaw_error_deg = -0.5;
+  }
+  records.push_back(FrameRecord{});  // no sigma, no ground truth: not counted
+  const SigmaCoverage coverage = sigma_coverage(records);
+  EXPECT_EQ(coverage.frames, 4);
+  EXPECT_DOUBLE_EQ(coverage.position_coverage, 0.75);
+  EXPECT_DOUBLE_EQ(coverage.yaw_coverage, 1.0);
+  EXPECT_DOUBLE_EQ(coverage.median_position_sigma_m, 0.01);
+  EXPECT_DOUBLE_EQ(coverage.median_yaw_error_deg, 0.5);
+  // Unknown sigmas and errors are empty fields at the end of the line.
+  const std::string csv = frames_csv({records.back()});
+  EXPECT_NE(csv.find(",,,\n"), std::string::npos) << csv;
+}
+
+TEST(RunReport, OdomErrorsAgainstTheGroundTruthRelativeToItsFirstFrame) {
+  // Ground truth camera poses from an arbitrary start; the estimate is the same motion in the
+  // odom frame (the base at the first frame), 2 cm off sideways at the second frame.
+  Eigen::Isometry3d T_base_cam = Eigen::Isometry3d::Identity();
+  T_base_cam.linear() << 0, 0, 1, -1, 0, 0, 0, -1, 0;
+  T_base_cam.translation() = Eigen::Vector3d(0.2, 0.0, 0.5);
+  Eigen::Isometry3d start = Eigen::Isometry3d::Identity();
+  start.translation() = Eigen::Vector3d(3.0, -1.0, 0.0);
+  Trajectory truth;
+  Eigen::Isometry3d moved = Eigen::Isometry3d::Identity();
+  moved.translation() = Eigen::Vector3d(1.0, 0.0, 0.0);  // the base 1 m forward
+  truth.push_back({1.0, start * T_base_cam});
+  truth.push_back({2.0, start * moved * T_base_cam});
+  std::vector<FrameRecord> records(2);
+  records[0].stamp_s = 1.0;
+  records[1].stamp_s = 2.0;
+  records[1].T_odom_base.translation() = Eigen::Vector3d(1.0, 0.02, 0.0);
+  add_odom_errors(records, truth, T_base_cam);
+  ASSERT_TRUE(records[0].gt_position_error_m && records[1].gt_position_error_m && records[1].gt_yaw_error_deg);
+  EXPECT_NEAR(*records[0].gt_position_error_m, 0.0, 1e-9);
+  EXPECT_NEAR(*records[1].gt_position_error_m, 0.02, 1e-9);
+  EXPECT_NEAR(*records[1].gt_yaw_error_deg, 0.0, 1e-9);
+}
+
 TEST(RunReport, LoopClosuresCsvLeavesTheErrorFieldsEmptyWithoutGroundTruth) {
   slam::LoopClosure closure;
   closure.stored_stamp_s = 1.0;

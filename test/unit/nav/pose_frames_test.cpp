@@ -1,5 +1,6 @@
 #include "rankslam/nav/pose_broadcaster.hpp"
 #include "rankslam/nav/pose_frames.hpp"
+#include "rankslam/nav/pose_uncertainty.hpp"
 
 #include "allocation_counter.hpp"
 
@@ -251,14 +252,15 @@ TEST(PoseBroadcaster, SendsPoseCyclesAndHeartbeatsAtTheirRates) {
   run_for(broadcaster, clock, 1000);
   EXPECT_EQ(broadcaster.counters().pose_cycles, 50U);
   EXPECT_EQ(broadcaster.counters().heartbeats, 10U);
-  ASSERT_EQ(bus.sent.size(), 260U);
+  ASSERT_EQ(bus.sent.size(), 310U);
   // Cycle order and shared counter.
   EXPECT_EQ(bus.sent[0].id, kPoseXYYawId);
   EXPECT_EQ(bus.sent[1].id, kPoseZRollPitchId);
   EXPECT_EQ(bus.sent[2].id, kMapOdomXYYawId);
   EXPECT_EQ(bus.sent[3].id, kMapOdomZRollPitchId);
-  EXPECT_EQ(bus.sent[4].id, kPoseQualityId);
-  EXPECT_EQ(bus.sent[5].id, kHeartbeatId);
+  EXPECT_EQ(bus.sent[4].id, kPoseVelocityId);
+  EXPECT_EQ(bus.sent[5].id, kPoseQualityId);
+  EXPECT_EQ(bus.sent[6].id, kHeartbeatId);
   const auto first = decode_pose_xy_yaw(bus.sent[0]);
   ASSERT_TRUE(first);
   EXPECT_NEAR(first->x_m, 1.234, 1e-9);
@@ -508,7 +510,7 @@ TEST(PoseBroadcaster, FullQueueIsCountedAndFlaggedInTheHeartbeat) {
   bus.full = true;
   clock.now += 100'000'000;
   (void)broadcaster.poll();  // one cycle refused
-  EXPECT_EQ(broadcaster.counters().tx_dropped, 5U);  // its five frames
+  EXPECT_EQ(broadcaster.counters().tx_dropped, 6U);  // its six frames
   bus.full = false;
   clock.now += 900'000'000;
   (void)broadcaster.poll();
@@ -562,6 +564,137 @@ TEST(PoseOutputConfig, RangesAreChecked) {
   config = {};
   config.watchdog_timeout_s = 20.0;
   EXPECT_NE(validate(config).find("watchdog_timeout_s"), std::string::npos);
+}
+
+TEST(PoseFrames, VelocityRoundTripSaturatesAndKeepsUnknown) {
+  PoseVelocity velocity{0.3, -0.012, -45.67, 11};
+  auto decoded = decode_pose_velocity(encode_pose_velocity(velocity, 5));
+  ASSERT_TRUE(decoded && decoded->vx_mps && decoded->vy_mps && decoded->yaw_rate_dps);
+  EXPECT_NEAR(*decoded->vx_mps, 0.3, 1e-9);
+  EXPECT_NEAR(*decoded->vy_mps, -0.012, 1e-9);
+  EXPECT_NEAR(*decoded->yaw_rate_dps, -45.67, 1e-9);
+  EXPECT_EQ(decoded->counter, 11);
+  // Saturation stays clear of the unknown value; not finite is unknown.
+  velocity = {100.0, -100.0, std::nan(""), 0};
+  decoded = decode_pose_velocity(encode_pose_velocity(velocity, 0));
+  ASSERT_TRUE(decoded);
+  EXPECT_NEAR(*decoded->vx_mps, 32.767, 1e-9);
+  EXPECT_NEAR(*decoded->vy_mps, -32.767, 1e-9);
+  EXPECT_FALSE(decoded->yaw_rate_dps);
+  decoded = decode_pose_velocity(encode_pose_velocity(PoseVelocity{}, 0));
+  ASSERT_TRUE(decoded);
+  EXPECT_FALSE(decoded->vx_mps || decoded->vy_mps || decoded->yaw_rate_dps);
+  hal::CanFrame wrong = encode_pose_velocity(PoseVelocity{}, 0);
+  wrong.length = 6;
+  EXPECT_FALSE(decode_pose_velocity(wrong));
+  EXPECT_FALSE(decode_pose_velocity(encode_pose_quality(PoseQuality{}, 0)));
+}
+
+std::vector<PoseVelocity> velocities(const std::vector<hal::CanFrame>& frames) {
+  std::vector<PoseVelocity> out;
+  for (const auto& frame : frames) {
+    if (auto v = decode_pose_velocity(frame)) out.push_back(*v);
+  }
+  return out;
+}
+
+TEST(PoseBroadcaster, VelocityFromTheOdomPoseChangeBetweenFrames) {
+  RecordingBus bus;
+  ManualClock clock;
+  PoseOutputConfig config;
+  config.watchdog_timeout_s = 10.0;
+  PoseBroadcaster broadcaster(config, bus, clock);
+  PoseSample sample;
+  sample.T_map_base.linear() = Eigen::AngleAxisd(M_PI / 2.0, Eigen::Vector3d::UnitZ()).toRotationMatrix();
+  sample.capture_ns = clock.now;
+  broadcaster.update(sample);
+  run_for(broadcaster, clock, 33);
+  ASSERT_FALSE(velocities(bus.sent).empty());
+  EXPECT_FALSE(velocities(bus.sent).back().vx_mps);  // one frame: no velocity yet
+  // 1 cm forward (+y in the map, the base faces it) and 1° left in 33 ms.
+  sample.T_map_base.translation() = Eigen::Vector3d(0.0, 0.01, 0.0);
+  sample.T_map_base.linear() = Eigen::AngleAxisd(M_PI / 2.0 + M_PI / 180.0, Eigen::Vector3d::UnitZ()).toRotationMatrix();
+  sample.capture_ns += 33'000'000;
+  // A loop-closure correction with it: the odom pose, and so the velocity, does not jump.
+  sample.map_correction.translation() = Eigen::Vector3d(5.0, 0.0, 0.0);
+  sample.T_map_base.translation() += Eigen::Vector3d(5.0, 0.0, 0.0);
+  broadcaster.update(sample);
+  run_for(broadcaster, clock, 20);
+  const PoseVelocity v = velocities(bus.sent).back();
+  ASSERT_TRUE(v.vx_mps && v.vy_mps && v.yaw_rate_dps);
+  EXPECT_NEAR(*v.vx_mps, 0.01 / 0.033, 0.002);
+  EXPECT_NEAR(*v.vy_mps, 0.0, 0.002);
+  EXPECT_NEAR(*v.yaw_rate_dps, 1.0 / 0.033, 0.05);
+  EXPECT_EQ(v.counter, qualities(bus.sent).back().counter);
+  // Frames too far apart give no velocity.
+  sample.capture_ns += 600'000'000;
+  sample.map_correction.setIdentity();
+  broadcaster.update(sample);
+  run_for(broadcaster, clock, 20);
+  EXPECT_FALSE(velocities(bus.sent).back().vx_mps);
+}
+
+TEST(PoseBroadcaster, SigmasSentWhileTrackingGrowWithTheWheelsAndAreUnknownWhenLost) {
+  RecordingBus bus;
+  ManualClock clock;
+  PoseOutputConfig config;
+  config.watchdog_timeout_s = 0.3;
+  PoseBroadcaster broadcaster(config, bus, clock, WheelNoise{1e-4, 0.30});
+  run_for(broadcaster, clock, 20);
+  ASSERT_FALSE(qualities(bus.sent).empty());
+  EXPECT_FALSE(qualities(bus.sent).back().position_sigma_m);  // INITIALISING: unknown
+  PoseSample sample;
+  sample.position_sigma_m = 0.05;
+  sample.yaw_sigma_deg = 1.0;
+  broadcaster.update(sample);
+  run_for(broadcaster, clock, 20);
+  PoseQuality q = qualities(bus.sent).back();
+  ASSERT_EQ(q.status, PoseStatus::kTracking);
+  ASSERT_TRUE(q.position_sigma_m && q.yaw_sigma_deg);
+  EXPECT_NEAR(*q.position_sigma_m, 0.05, 1e-4);
+  EXPECT_NEAR(*q.yaw_sigma_deg, 1.0, 0.02);
+  // 1 m on the wheels since the frame: the variance grows by 1e-4 / 2 per metre rolled.
+  Eigen::Isometry3d motion = Eigen::Isometry3d::Identity();
+  motion.translation().x() = 1.0;
+  broadcaster.set_wheel_motion(motion);
+  run_for(broadcaster, clock, 20);
+  q = qualities(bus.sent).back();
+  ASSERT_TRUE(q.position_sigma_m && q.yaw_sigma_deg);
+  EXPECT_NEAR(*q.position_sigma_m, std::sqrt(0.05 * 0.05 + 0.5e-4), 1e-4);
+  EXPECT_GT(*q.yaw_sigma_deg, 1.0);
+  // No frame for longer than the watchdog: LOST, and the sigmas and velocity unknown.
+  run_for(broadcaster, clock, 400);
+  q = qualities(bus.sent).back();
+  ASSERT_EQ(q.status, PoseStatus::kLost);
+  EXPECT_FALSE(q.position_sigma_m || q.yaw_sigma_deg);
+  EXPECT_FALSE(velocities(bus.sent).back().vx_mps);
+}
+
+TEST(PoseUncertainty, SigmasOfTheBaseFromTheCameraCovariance) {
+  // Camera looking forward along the base's x axis (optical z forward, x right, y down), 0.2 m
+  // ahead of the base origin.
+  Eigen::Isometry3d T_base_cam = Eigen::Isometry3d::Identity();
+  T_base_cam.linear() << 0, 0, 1, -1, 0, 0, 0, -1, 0;
+  T_base_cam.translation() = Eigen::Vector3d(0.2, 0.0, 0.5);
+  Eigen::Matrix<double, 6, 6> covariance = Eigen::Matrix<double, 6, 6>::Zero();
+  // Translation: 3 cm sd along the optical z (base x), 1 cm along optical x (base y), 5 cm along
+  // optical y (base z, not horizontal).
+  covariance.diagonal().tail<3>() << 1e-4, 25e-4, 9e-4;
+  PoseSigmas sigmas = pose_sigmas(Eigen::Isometry3d::Identity(), covariance, T_base_cam);
+  EXPECT_NEAR(sigmas.position_m, 0.03, 1e-9);
+  EXPECT_NEAR(sigmas.yaw_deg, 0.0, 1e-9);
+  // A rotation about optical −y is a yaw of the base; the base origin 0.2 m behind the camera
+  // swings sideways with it.
+  covariance.setZero();
+  covariance(1, 1) = std::pow(2.0 * M_PI / 180.0, 2);
+  sigmas = pose_sigmas(Eigen::Isometry3d::Identity(), covariance, T_base_cam);
+  EXPECT_NEAR(sigmas.yaw_deg, 2.0, 1e-9);
+  EXPECT_NEAR(sigmas.position_m, 0.2 * 2.0 * M_PI / 180.0, 1e-9);
+  // Wheels: no motion, no growth.
+  EXPECT_EQ(grown_by_wheels(sigmas, 0.0, 0.0, 1e-4, 0.3).position_m, sigmas.position_m);
+  const PoseSigmas grown = grown_by_wheels(PoseSigmas{0.0, 0.0}, 2.0, 0.0, 1e-4, 0.3);
+  EXPECT_NEAR(grown.position_m, std::sqrt(1e-4), 1e-12);
+  EXPECT_NEAR(grown.yaw_deg, std::sqrt(2.0 * 1e-4 * 2.0 / 0.09) * 180.0 / M_PI, 1e-9);
 }
 
 }  // namespace

@@ -8,12 +8,13 @@
 #include <cstdint>
 #include <optional>
 #include <string>
+#include <utility>
 
 namespace rankslam::nav {
 
 /// Rates and watchdog of the pose output; fixed after construction.
 struct PoseOutputConfig {
-  double pose_rate_hz = 50.0;        ///< Hz; pose cycles (PoseXYYaw, PoseZRollPitch, PoseQuality) per second, 1 .. 200
+  double pose_rate_hz = 50.0;        ///< Hz; pose cycles (six frames, PoseXYYaw .. PoseQuality) per second, 1 .. 200
   double heartbeat_rate_hz = 10.0;   ///< Hz; Heartbeat frames per second, 0.5 .. 100
   double watchdog_timeout_s = 0.5;   ///< s; no camera frame for this long reports LOST, 0.05 .. 10
   int lost_after_failed_frames = 15; ///< consecutive failed registrations that report LOST, 1 .. 1000
@@ -41,11 +42,22 @@ struct PoseSample {
   /// Vision overruled the wheels on this frame (slip); PoseQuality.WheelSlip.
   bool wheel_slip = false;
   std::optional<std::uint8_t> inlier_percent;
+  /// Standard deviations of the odom pose at the frame (nav::pose_sigmas of the SLAM loop's
+  /// covariance since the first frame); none = unknown.
+  std::optional<double> position_sigma_m;
+  std::optional<double> yaw_sigma_deg;
+};
+
+/// Wheel noise the sigmas grow by while the wheels move the pose on between camera frames
+/// (nav::grown_by_wheels); a zero variance leaves them as the frame's.
+struct WheelNoise {
+  double wheel_variance_per_m = 0.0;  ///< m²/m, WheelOdometryConfig::wheel_variance_per_m
+  double track_width_m = 0.30;
 };
 
 /// Counters for the run report.
 struct PoseOutputCounters {
-  std::uint64_t pose_cycles = 0;    ///< pose cycles sent (three frames each)
+  std::uint64_t pose_cycles = 0;    ///< pose cycles sent (six frames each)
   std::uint64_t heartbeats = 0;
   std::uint64_t lost_cycles = 0;    ///< pose cycles sent with status LOST
   std::uint64_t tx_dropped = 0;     ///< frames the bus refused because its queue was full
@@ -60,7 +72,8 @@ struct PoseOutputCounters {
 /// calls everything (the application hands samples over under its own lock). Never allocates.
 class PoseBroadcaster {
  public:
-  PoseBroadcaster(const PoseOutputConfig& config, hal::CanBus& bus, const hal::Clock& clock);
+  PoseBroadcaster(const PoseOutputConfig& config, hal::CanBus& bus, const hal::Clock& clock,
+                  const WheelNoise& wheel_noise = {});
 
   /// A camera frame was processed; its arrival (now) feeds the watchdog. The wheel motion since
   /// the frame starts at identity.
@@ -79,6 +92,12 @@ class PoseBroadcaster {
   /// them (T_map_base = T_map_odom * T_odom_base).
   [[nodiscard]] Eigen::Isometry3d T_odom_base() const;
   [[nodiscard]] const Eigen::Isometry3d& T_map_odom() const { return T_map_odom_; }
+  /// The base's velocity in its own frame the next cycle sends (PoseVelocity): the odom pose's
+  /// change between the last two camera frames, over their capture interval. None before the
+  /// second frame, when the interval is not in (0, kMaxVelocityInterval_s], and when LOST.
+  [[nodiscard]] std::optional<PoseVelocity> velocity() const;
+  /// Longest capture interval a velocity is computed over, s.
+  static constexpr double kMaxVelocityInterval_s = 0.5;
   [[nodiscard]] const PoseOutputCounters& counters() const { return counters_; }
 
  private:
@@ -100,6 +119,10 @@ class PoseBroadcaster {
   std::optional<PoseSample> latest_;
   Eigen::Isometry3d T_map_odom_ = Eigen::Isometry3d::Identity();
   Eigen::Isometry3d wheel_motion_ = Eigen::Isometry3d::Identity();
+  WheelNoise wheel_noise_;
+  /// The previous sample's odom pose and capture time, and the velocity between it and the latest.
+  std::optional<std::pair<Eigen::Isometry3d, std::int64_t>> previous_odom_;
+  std::optional<PoseVelocity> sample_velocity_;
   int consecutive_failures_ = 0;
   std::uint8_t pose_counter_ = 0;
   std::uint8_t heartbeat_counter_ = 0;

@@ -13,8 +13,8 @@ namespace rankslam::nav {
 // Pose output frames rankslam sends to the base controller (deploy/can/rankslam.dbc, README
 // "CAN frames"). Every frame is 8 bytes, signals little-endian (Intel) and packed from bit 0 of
 // byte 0 upwards; signed signals are two's complement. One pose cycle is PoseXYYaw,
-// PoseZRollPitch, MapOdomXYYaw, MapOdomZRollPitch and PoseQuality, in that order, all carrying
-// the same 4-bit cycle counter; PoseQuality closes the cycle.
+// PoseZRollPitch, MapOdomXYYaw, MapOdomZRollPitch, PoseVelocity and PoseQuality, in that order,
+// all carrying the same 4-bit cycle counter; PoseQuality closes the cycle.
 //
 // Frames as in ROS REP 105: the pose frames carry the base in the odom frame, which moves
 // continuously (a loop closure never makes it jump); the map-odom frames carry the odom frame
@@ -26,6 +26,7 @@ inline constexpr std::uint32_t kPoseZRollPitchId = 0x111;
 inline constexpr std::uint32_t kPoseQualityId = 0x112;
 inline constexpr std::uint32_t kMapOdomXYYawId = 0x113;
 inline constexpr std::uint32_t kMapOdomZRollPitchId = 0x114;
+inline constexpr std::uint32_t kPoseVelocityId = 0x115;
 inline constexpr std::uint32_t kHeartbeatId = 0x118;
 inline constexpr std::uint8_t kPoseFrameLength = 8;
 
@@ -111,6 +112,23 @@ struct PoseQuality {
   std::optional<std::uint8_t> inlier_percent;
 };
 
+/// Velocity resolution, m/s per count, and yaw-rate resolution, °/s per count (16 signed bits);
+/// the raw value kVelocityUnknown (-32768) of each signal means unknown.
+inline constexpr double kVelocityScale_mps = 0.001;
+inline constexpr double kYawRateScale_dps = 0.01;
+inline constexpr std::int32_t kVelocityUnknown = -32768;
+
+/// `PoseVelocity` 0x115: the base's velocity in its own frame (x forward, y left), from the
+/// odom pose's change between camera frames. Bits 0..15 vx (int16, 1 mm/s), 16..31 vy (int16,
+/// 1 mm/s), 32..47 yaw rate (int16, 0.01°/s), 48..59 reserved (0), 60..63 cycle counter; each
+/// signal saturates at ±32767 counts, and -32768 is unknown.
+struct PoseVelocity {
+  std::optional<double> vx_mps;        ///< nullopt = unknown
+  std::optional<double> vy_mps;        ///< nullopt = unknown
+  std::optional<double> yaw_rate_dps;  ///< nullopt = unknown
+  std::uint8_t counter = 0;
+};
+
 /// `Heartbeat` 0x118: bytes 0..3 uptime, uint32 ms (wraps after 49.7 days); byte 4 bits 0..1
 /// status (as PoseQuality); byte 5 fault bits: 0 camera fault, 1 camera watchdog expired,
 /// 2 CAN frames dropped since the last heartbeat, 3 camera end of stream (replay only);
@@ -135,6 +153,7 @@ struct Heartbeat {
 [[nodiscard]] hal::CanFrame encode_pose_z_roll_pitch(const PoseZRollPitch& pose, std::int64_t stamp_ns,
                                                      std::uint32_t id = kPoseZRollPitchId);
 [[nodiscard]] hal::CanFrame encode_pose_quality(const PoseQuality& quality, std::int64_t stamp_ns);
+[[nodiscard]] hal::CanFrame encode_pose_velocity(const PoseVelocity& velocity, std::int64_t stamp_ns);
 [[nodiscard]] hal::CanFrame encode_heartbeat(const Heartbeat& heartbeat, std::int64_t stamp_ns);
 
 /// Decoders: nullopt when the identifier, length or an enum value is wrong.
@@ -143,6 +162,7 @@ struct Heartbeat {
 [[nodiscard]] std::optional<PoseZRollPitch> decode_pose_z_roll_pitch(const hal::CanFrame& frame,
                                                                      std::uint32_t id = kPoseZRollPitchId);
 [[nodiscard]] std::optional<PoseQuality> decode_pose_quality(const hal::CanFrame& frame);
+[[nodiscard]] std::optional<PoseVelocity> decode_pose_velocity(const hal::CanFrame& frame);
 [[nodiscard]] std::optional<Heartbeat> decode_heartbeat(const hal::CanFrame& frame);
 
 /// True when some coordinate of `pose` does not fit the 22-bit position signals.

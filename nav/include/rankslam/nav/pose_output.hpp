@@ -46,6 +46,8 @@ class PoseMailbox {
 /// How the pose output runs; fixed after construction.
 struct PoseOutputOptions {
   PoseOutputConfig broadcast;  ///< rates, watchdog, wheel propagation
+  /// The wheels' noise, which the sent sigmas grow by while the wheels carry the pose on.
+  WheelNoise wheel_noise;
   /// Identifier of the wheel encoder frames it takes in (standard, 11 bit); others are ignored.
   std::uint32_t wheel_can_id = hal::WheelGeometry{}.can_id;
   /// Longest wait inside receive() between two due frames, so the mailbox is looked at often.

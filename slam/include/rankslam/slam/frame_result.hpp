@@ -82,6 +82,14 @@ struct FrameResult {
   /// Identity when none was applied.
   bool graph_applied = false;
   Eigen::Isometry3d map_correction = Eigen::Isometry3d::Identity();
+  /// Covariance of the frame's pose accumulated since the first frame (the odom pose, which a
+  /// map correction does not change): ξ = (rotation vector, translation) applied on the right,
+  /// T_world_cam·Exp(ξ), in the camera frame. Chained frame by frame from the frame each pose was
+  /// measured from: the registration's covariance, the wheel prior's where the wheels carried or
+  /// joined it, the tracker's floor where the motion model extrapolated it. False where the
+  /// tracker keeps no chain (the geometric tracker).
+  bool odom_covariance_valid = false;
+  Eigen::Matrix<double, 6, 6> odom_covariance = Eigen::Matrix<double, 6, 6>::Zero();
   nav::WheelCheck wheels;
   StageTimes times;
 };

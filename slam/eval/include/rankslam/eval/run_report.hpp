@@ -2,9 +2,12 @@
 
 #include "rankslam/eval/json_writer.hpp"
 #include "rankslam/eval/metrics.hpp"
+#include "rankslam/eval/trajectory.hpp"
+#include "rankslam/nav/pose_uncertainty.hpp"
 #include "rankslam/nav/wheel_prior.hpp"
 #include "rankslam/slam/slam_loop.hpp"
 
+#include <optional>
 #include <string>
 #include <string_view>
 #include <vector>
@@ -57,7 +60,33 @@ struct FrameRecord {
   int geometric_inliers = 0;
   double photometric_weight = 0.0;
   nav::WheelCheck wheels;
+  /// The base in the odom frame and the standard deviations PoseQuality sends with it (none:
+  /// unknown), and its error against the ground truth (the ground truth's base relative to its
+  /// first frame), where there is one: horizontal distance and yaw difference.
+  Eigen::Isometry3d T_odom_base = Eigen::Isometry3d::Identity();
+  std::optional<nav::PoseSigmas> sigmas;
+  std::optional<double> gt_position_error_m;
+  std::optional<double> gt_yaw_error_deg;
 };
+
+/// How well the sent sigmas cover the odom pose's true error: the frames with a sigma and a
+/// ground-truth error, the fraction of them whose error is within 3σ (horizontal distance within
+/// 3 position sigmas, yaw within 3 yaw sigmas), and the medians of sigma and error.
+struct SigmaCoverage {
+  int frames = 0;
+  double position_coverage = 0.0;
+  double yaw_coverage = 0.0;
+  double median_position_sigma_m = 0.0;
+  double median_position_error_m = 0.0;
+  double median_yaw_sigma_deg = 0.0;
+  double median_yaw_error_deg = 0.0;
+};
+[[nodiscard]] SigmaCoverage sigma_coverage(const std::vector<FrameRecord>& records);
+
+/// Fills each record's gt_*_error from `ground_truth` (camera poses, associated by stamp, the
+/// TUM benchmark's way) with the camera mounted at T_base_cam.
+void add_odom_errors(std::vector<FrameRecord>& records, const Trajectory& ground_truth,
+                     const Eigen::Isometry3d& T_base_cam);
 
 /// The frames.csv line of a processed frame.
 [[nodiscard]] FrameRecord frame_record(double stamp_s, const slam::FrameResult& result);
