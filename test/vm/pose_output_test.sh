@@ -72,10 +72,11 @@ dump=\$!
 sleep 0.3
 notify_env=""
 if [ -n "$listener" ]; then
-  "$listener" /tmp/rankslam-notify.sock > "\$out/notify.log" 2> "\$out/notify.err" &
+  "$listener" \$TMPDIR/rankslam-notify.sock > "\$out/notify.log" 2> "\$out/notify.err" &
   listen=\$!
   for i in \$(seq 1 50); do grep -q listening "\$out/notify.log" && break; sleep 0.1; done
-  notify_env="NOTIFY_SOCKET=/tmp/rankslam-notify.sock WATCHDOG_USEC=1000000"
+  grep -q listening "\$out/notify.log" || { echo "FAIL: notify_listen did not start: \$(cat "\$out/notify.err")"; exit 1; }
+  notify_env="NOTIFY_SOCKET=\$TMPDIR/rankslam-notify.sock WATCHDOG_USEC=1000000"
 fi
 env \$notify_env "$rankslam" run --config "$work/robot.yaml" --mode baseline --frame camera --out "\$out/run" > "\$out/run.log" 2>&1 &
 run=\$!
