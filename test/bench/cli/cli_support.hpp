@@ -4,6 +4,8 @@
 #include <sys/wait.h>
 
 #include <array>
+#include <cmath>
+#include <cstdlib>
 #include <cstdio>
 #include <filesystem>
 #include <fstream>
@@ -38,6 +40,24 @@ inline std::string slurp(const std::filesystem::path& path) {
   std::stringstream text;
   text << in.rdbuf();
   return text.str();
+}
+
+// An empty path of this name in the temporary directory (an earlier run's removed).
+inline std::filesystem::path fresh_dir(const std::string& name) {
+  const std::filesystem::path dir = std::filesystem::temp_directory_path() / name;
+  std::filesystem::remove_all(dir);
+  return dir;
+}
+
+// A number in report.json; NaN when the key is absent or null.
+inline double report_number(const std::string& report, const std::string& key) {
+  const std::string needle = "\"" + key + "\": ";
+  const auto at = report.find(needle);
+  if (at == std::string::npos) return std::nan("");
+  const char* start = report.c_str() + at + needle.size();
+  char* end = nullptr;
+  const double value = std::strtod(start, &end);
+  return end == start ? std::nan("") : value;
 }
 
 }  // namespace cli_test

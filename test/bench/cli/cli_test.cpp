@@ -29,11 +29,6 @@ using namespace cli_test;
 
 fs::path shared_data() { return fs::path(RANKSLAM_SHARED_DATA); }
 
-fs::path fresh_dir(const std::string& name) {
-  const fs::path dir = fs::temp_directory_path() / name;
-  fs::remove_all(dir);
-  return dir;
-}
 
 TEST(Cli, HelpForEverySubcommand) {
   for (const char* sub : {"", "replay", "simulate", "eval", "run"}) {
@@ -216,16 +211,6 @@ double count_data_lines(const fs::path& file) {
   return count;
 }
 
-// A number in report.json; NaN when the key is absent or null.
-double report_number(const std::string& report, const std::string& key) {
-  const std::string needle = "\"" + key + "\": ";
-  const auto at = report.find(needle);
-  if (at == std::string::npos) return std::nan("");
-  const char* start = report.c_str() + at + needle.size();
-  char* end = nullptr;
-  const double value = std::strtod(start, &end);
-  return end == start ? std::nan("") : value;
-}
 
 TEST(Cli, DefaultFusedReplayOfFr1RpyHeadStaysWithinTwoAndAHalfCentimetres) {
   const fs::path recording = shared_data() / "tum/fr1_rpy_head";

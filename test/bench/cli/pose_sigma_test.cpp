@@ -17,24 +17,11 @@ namespace {
 
 namespace fs = std::filesystem;
 using cli_test::run;
+using cli_test::fresh_dir;
+using cli_test::report_number;
 using cli_test::slurp;
 
-fs::path fresh_dir(const std::string& name) {
-  const fs::path dir = fs::temp_directory_path() / name;
-  fs::remove_all(dir);
-  return dir;
-}
 
-// A number in report.json; NaN when the key is absent or null.
-double report_number(const std::string& report, const std::string& key) {
-  const std::string needle = "\"" + key + "\": ";
-  const auto at = report.find(needle);
-  if (at == std::string::npos) return std::nan("");
-  const char* start = report.c_str() + at + needle.size();
-  char* end = nullptr;
-  const double value = std::strtod(start, &end);
-  return end == start ? std::nan("") : value;
-}
 
 // The corridor loop's first straight, turn and into the second straight (kFrames frames at
 // 30 Hz), seed 2, vision only: the sigma then is the registrations' own chain. (With the wheels it
