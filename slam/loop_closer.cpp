@@ -3,7 +3,6 @@
 #include "rankslam/core/lie.hpp"
 #include "rankslam/slam/registration_support.hpp"
 
-#include <Eigen/Eigenvalues>
 
 #include <algorithm>
 #include <cmath>
@@ -125,26 +124,12 @@ void LoopCloser::try_candidate(StoredKeyframe& stored, FrameResult& result) {
   }
   // Inlier geometry: the matches that fit must spread in two directions at least; matches on a
   // line or in one small patch fit a wrong motion as well as the right one.
-  const Eigen::Isometry3f T = estimate.T_target_source.cast<float>();
-  Eigen::Vector3d sum = Eigen::Vector3d::Zero();
-  Eigen::Matrix3d sum_sq = Eigen::Matrix3d::Zero();
-  int inliers = 0;
   const std::span<const Eigen::Vector3f> source_points = registrar_.source_points();
   const std::span<const Eigen::Vector3f> target_points = registrar_.target_points();
   const std::span<const double> correspondence_sigma_m = registrar_.correspondence_sigma_m();
-  for (std::size_t i = 0; i < source_points.size(); ++i) {
-    const double residual = (T * source_points[i] - target_points[i]).norm();
-    if (residual > 3.0 * correspondence_sigma_m[i]) continue;
-    const Eigen::Vector3d p = source_points[i].cast<double>();
-    sum += p;
-    sum_sq += p * p.transpose();
-    ++inliers;
-  }
-  if (inliers < config_.min_inliers) return;
-  const Eigen::Vector3d mean = sum / inliers;
-  const Eigen::Matrix3d covariance = sum_sq / inliers - mean * mean.transpose();
-  const Eigen::SelfAdjointEigenSolver<Eigen::Matrix3d> spread(covariance, Eigen::EigenvaluesOnly);
-  if (std::sqrt(std::max(0.0, spread.eigenvalues()(1))) < config_.loop.min_inlier_spread_m) return;
+  const InlierSpread spread =
+      inlier_spread(estimate.T_target_source, source_points, target_points, correspondence_sigma_m);
+  if (spread.inliers < config_.min_inliers || spread.axes_m(1) < config_.loop.min_inlier_spread_m) return;
 
   graph::Edge edge;
   edge.from = stored.node;

@@ -82,21 +82,28 @@ MotionBelief combine(const MotionBelief& prior, const MotionBelief& measurement)
   return result;
 }
 
-double inlier_thickness_m(const Eigen::Isometry3d& T_target_source, std::span<const Eigen::Vector3f> source,
-                          std::span<const Eigen::Vector3f> target, std::span<const double> sigma_m) {
+InlierSpread inlier_spread(const Eigen::Isometry3d& T_target_source, std::span<const Eigen::Vector3f> source,
+                           std::span<const Eigen::Vector3f> target, std::span<const double> sigma_m) {
   Eigen::Vector3d sum = Eigen::Vector3d::Zero();
   Eigen::Matrix3d sum_sq = Eigen::Matrix3d::Zero();
-  int count = 0;
+  InlierSpread spread;
   for_each_inlier(T_target_source, source, target, sigma_m, [&](const Eigen::Vector3d& p, double /*sigma*/) {
     sum += p;
     sum_sq += p * p.transpose();
-    ++count;
+    ++spread.inliers;
   });
-  if (count < 4) return 0.0;
-  const Eigen::Vector3d mean = sum / count;
-  const Eigen::Matrix3d covariance = sum_sq / count - mean * mean.transpose();
-  const Eigen::SelfAdjointEigenSolver<Eigen::Matrix3d> spread(covariance, Eigen::EigenvaluesOnly);
-  return std::sqrt(std::max(0.0, spread.eigenvalues()(0)));
+  if (spread.inliers == 0) return spread;
+  const Eigen::Vector3d mean = sum / spread.inliers;
+  const Eigen::Matrix3d covariance = sum_sq / spread.inliers - mean * mean.transpose();
+  const Eigen::SelfAdjointEigenSolver<Eigen::Matrix3d> solver(covariance, Eigen::EigenvaluesOnly);
+  spread.axes_m = solver.eigenvalues().cwiseMax(0.0).cwiseSqrt();
+  return spread;
+}
+
+double inlier_thickness_m(const Eigen::Isometry3d& T_target_source, std::span<const Eigen::Vector3f> source,
+                          std::span<const Eigen::Vector3f> target, std::span<const double> sigma_m) {
+  const InlierSpread spread = inlier_spread(T_target_source, source, target, sigma_m);
+  return spread.inliers < 4 ? 0.0 : spread.axes_m(0);
 }
 
 Matrix6d correspondence_information(const Eigen::Isometry3d& T_target_source, std::span<const Eigen::Vector3f> source,

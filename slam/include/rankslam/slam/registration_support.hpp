@@ -71,6 +71,16 @@ struct MotionBelief {
 /// definite.
 [[nodiscard]] MotionBelief combine(const MotionBelief& prior, const MotionBelief& measurement);
 
+/// How the inliers (within 3σ under T_target_source) spread: their count and the √ of the
+/// eigenvalues of their source points' covariance, smallest first [m].
+struct InlierSpread {
+  int inliers = 0;
+  Eigen::Vector3d axes_m = Eigen::Vector3d::Zero();
+};
+[[nodiscard]] InlierSpread inlier_spread(const Eigen::Isometry3d& T_target_source,
+                                         std::span<const Eigen::Vector3f> source,
+                                         std::span<const Eigen::Vector3f> target, std::span<const double> sigma_m);
+
 /// √ of the smallest eigenvalue of the covariance of the inliers' source points: how far they
 /// leave their best-fitting plane [m]. 0 with fewer than 4 inliers.
 [[nodiscard]] double inlier_thickness_m(const Eigen::Isometry3d& T_target_source,
