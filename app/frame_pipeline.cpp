@@ -33,6 +33,7 @@ FramePipeline::FramePipeline(const slam::SlamConfig& config, const hal::Calibrat
     : options_(options), T_base_cam_(calibration.rgb.T_base_cam), loop_(config, calibration), wheels_(wheels) {
   loop_.set_synchronous_backend(options.synchronous_backend);
   trajectory_.reserve(options.max_frames);
+  relocalisations_.reserve(kMaxRelocalisations);
   if (options.frame_log) {
     frame_records_.reserve(options.max_frames);
     frame_ms_.reserve(options.max_frames);
@@ -67,11 +68,26 @@ slam::FrameResult FramePipeline::process(const hal::RgbdFrame& frame) {
     const auto sent = nav::decode_pose_quality(nav::encode_pose_quality(quality, 0));
     if (sent && sent->position_sigma_m && sent->yaw_sigma_deg) sigmas_ = nav::PoseSigmas{*sent->position_sigma_m, *sent->yaw_sigma_deg};
   }
-  if (result.status == slam::FrameStatus::kFailed || result.status == slam::FrameStatus::kWheels) ++failed_frames_;
+  if (result.status == slam::FrameStatus::kFailed || result.status == slam::FrameStatus::kWheels ||
+      result.status == slam::FrameStatus::kLost) {
+    ++failed_frames_;
+  }
+  if (result.relocalised) {
+    for (int i = 0; i < result.retracted_frames && !trajectory_.empty(); ++i) {
+      trajectory_.pop_back();
+      if (!keyframe_links_.empty()) keyframe_links_.pop_back();
+    }
+    if (relocalisations_.size() < kMaxRelocalisations) {
+      relocalisations_.push_back({frames_, frame.stamp_s, result.T_world_cam, result.retracted_frames});
+    }
+  }
+  ++frames_;
+  // A lost frame's pose is unknown: it has none in the trajectory.
+  const bool pose_known = result.status != slam::FrameStatus::kLost;
   const bool kept = trajectory_.size() < options_.max_frames;
-  if (kept) {
+  if (kept && pose_known) {
     trajectory_.push_back({frame.stamp_s, result.T_world_cam});
-  } else {
+  } else if (!kept) {
     ++trajectory_overflow_;
   }
   if (options_.frame_log && kept) {
@@ -80,7 +96,7 @@ slam::FrameResult FramePipeline::process(const hal::RgbdFrame& frame) {
     frame_records_.push_back(eval::frame_record(frame.stamp_s, result));
     frame_records_.back().T_odom_base = T_odom_base_;
     frame_records_.back().sigmas = sigmas_;
-    keyframe_links_.push_back({result.keyframe_node, result.keyframe_generation, result.T_keyframe_cam});
+    if (pose_known) keyframe_links_.push_back({result.keyframe_node, result.keyframe_generation, result.T_keyframe_cam});
     for (auto i = static_cast<int>(closures_.size()); i < loop_.loop_closures(); ++i) {
       if (const slam::LoopClosure* closure = loop_.loop_closure(i); closure != nullptr) closures_.push_back(*closure);
     }

@@ -84,7 +84,14 @@ class FramePipeline {
   void finish();
 
   [[nodiscard]] slam::SlamLoop& loop() { return loop_; }
+  /// The poses of the frames found in the map: without the frames whose status was kLost and
+  /// those a relocalisation withdrew (slam::FrameResult::retracted_frames).
   [[nodiscard]] const eval::Trajectory& trajectory() const { return trajectory_; }
+  /// Frames processed.
+  [[nodiscard]] std::uint64_t frames() const { return frames_; }
+  /// The relocalisations so far (the first kMaxRelocalisations).
+  [[nodiscard]] const std::vector<eval::RelocalisationRecord>& relocalisations() const { return relocalisations_; }
+  static constexpr std::size_t kMaxRelocalisations = 256;
   [[nodiscard]] std::uint64_t trajectory_overflow() const { return trajectory_overflow_; }
   [[nodiscard]] const eval::StatusCounts& status_counts() const { return status_counts_; }
   /// Frames neither registered nor first: the wheels carried them, or nothing did.
@@ -120,6 +127,8 @@ class FramePipeline {
   nav::MotionPrior prior_;
   eval::Trajectory trajectory_;
   std::uint64_t trajectory_overflow_ = 0;
+  std::uint64_t frames_ = 0;
+  std::vector<eval::RelocalisationRecord> relocalisations_;
   eval::StatusCounts status_counts_;
   int failed_frames_ = 0;
   std::vector<eval::FrameRecord> frame_records_;

@@ -53,7 +53,7 @@ bool run_live_loop(const LiveLoopParts& parts, const std::function<bool()>& stop
       for (const auto& warning : parts.replay_camera->take_warnings()) std::cerr << "warning: " << warning << "\n";
     }
     if (status == hal::ReadStatus::kEndOfStream) {
-      std::cout << "end of stream after " << pipeline.trajectory().size() << " frames" << std::endl;
+      std::cout << "end of stream after " << pipeline.frames() << " frames" << std::endl;
       end_time = std::chrono::steady_clock::now();
       mailbox.set_end_of_stream();
       continue;
@@ -74,6 +74,7 @@ bool run_live_loop(const LiveLoopParts& parts, const std::function<bool()>& stop
     sample.frame_sequence = frame.sequence;
     sample.registered = registered;
     sample.wheels_only = result.status == slam::FrameStatus::kWheels;
+    sample.lost = result.status == slam::FrameStatus::kLost;
     sample.wheel_slip = result.wheels.vision_trusted;
     if (result.status != slam::FrameStatus::kFirstFrame && result.features > 0) {
       sample.inlier_percent = static_cast<std::uint8_t>(std::min(100, 100 * result.inliers / result.features));

@@ -153,7 +153,7 @@ int run_replay(const ReplayArgs& args) {
     if (status == hal::ReadStatus::kEndOfStream) break;
     if (status != hal::ReadStatus::kOk) continue;
     (void)pipeline.process(frame);
-    progress.update(static_cast<unsigned>(pipeline.trajectory().size()));
+    progress.update(static_cast<unsigned>(pipeline.frames()));
   }
   progress.finish();
   // The last optimisation, then every frame re-expressed on its key-frame's optimised pose.
@@ -244,7 +244,7 @@ int run_replay(const ReplayArgs& args) {
   json.string("recording", recording.root.string());
   json.string("output_frame", to_string(output_frame));
   json.string("mode", slam::to_string(config.mode));
-  json.integer("frames", static_cast<long long>(estimate.size()));
+  json.integer("frames", static_cast<long long>(pipeline.frames()));
   json.integer("failed_frames", failed_frames);
   json.integer("skipped_frames", counters.corrupt);
   json.integer("dropped_frames", counters.dropped);
@@ -260,6 +260,26 @@ int run_replay(const ReplayArgs& args) {
   } else {
     json.integer("loop_closures_checked", 0);
     json.null("false_loop_closures").null("loop_closure_max_error_m").null("loop_closure_max_error_deg");
+  }
+  json.integer("relocalisations", loop.relocalisations());
+  const std::vector<eval::RelocalisationRecord>& relocalisations = pipeline.relocalisations();
+  if (relocalisations.empty()) {
+    json.null("relocalised_at_frame");
+  } else {
+    json.integer("relocalised_at_frame", static_cast<long long>(relocalisations.front().frame));
+  }
+  if (accuracy && !relocalisations.empty()) {
+    const std::vector<eval::RelocalisationError> errors =
+        eval::relocalisation_errors(*ground_truth, accuracy->ate, relocalisations, eval::kDefaultMaxDifference_s);
+    if (errors.front().has_ground_truth) {
+      json.number("relocalisation_error_m", errors.front().translation_m);
+    } else {
+      json.null("relocalisation_error_m");
+    }
+    json.integer("false_relocalisations", static_cast<long long>(std::count_if(
+                                              errors.begin(), errors.end(), eval::is_false_relocalisation)));
+  } else {
+    json.null("relocalisation_error_m").null("false_relocalisations");
   }
   json.integer("retired_keyframes", loop.retired_keyframes());
   json.number("peak_rss_mb", peak_rss_mb());
@@ -306,7 +326,8 @@ int run_replay(const ReplayArgs& args) {
   if (exit_code == kExitOk && stop_requested()) exit_code = kExitInterrupted;
 
   const eval::Percentiles timing = eval::percentiles(pipeline.frame_ms());
-  std::printf("frames %zu  failed %d  skipped %u  median %.1f ms/frame\n", estimate.size(), failed_frames,
+  std::printf("frames %llu  failed %d  skipped %u  median %.1f ms/frame\n",
+              static_cast<unsigned long long>(pipeline.frames()), failed_frames,
               counters.corrupt, timing.median);
   std::printf("status TRACKING %d  DEGRADED %d  LOST %d", pipeline.status_counts().tracking, pipeline.status_counts().degraded,
               pipeline.status_counts().lost);

@@ -296,7 +296,7 @@ int run_live(const RunArgs& args) {
     json.integer("camera_reopens", static_cast<long long>(c.reopens));
   }
   json.string("can_interface", robot.can_interface);
-  json.integer("frames", static_cast<long long>(pipeline.trajectory().size()));
+  json.integer("frames", static_cast<long long>(pipeline.frames()));
   json.integer("failed_frames", pipeline.failed_frames());
   // The sender has stopped: the wheels need no lock any more.
   eval::write_status_and_wheels(json, pipeline.status_counts(), wheels.prior(), loop.wheel_slip_events(),
@@ -323,8 +323,8 @@ int run_live(const RunArgs& args) {
   report_error(outputs.publish());
   if (exit_code == kExitOk && stop_requested()) exit_code = kExitInterrupted;
 
-  std::printf("frames %zu  failed %d  pose cycles %llu (lost %llu)  heartbeats %llu  wheel frames in %llu%s\n",
-              pipeline.trajectory().size(), pipeline.failed_frames(), static_cast<unsigned long long>(pose_counters.pose_cycles),
+  std::printf("frames %llu  failed %d  pose cycles %llu (lost %llu)  heartbeats %llu  wheel frames in %llu%s\n",
+              static_cast<unsigned long long>(pipeline.frames()), pipeline.failed_frames(), static_cast<unsigned long long>(pose_counters.pose_cycles),
               static_cast<unsigned long long>(pose_counters.lost_cycles),
               static_cast<unsigned long long>(pose_counters.heartbeats),
               static_cast<unsigned long long>(wheel_counters.frames), interrupted ? "  (interrupted)" : "");

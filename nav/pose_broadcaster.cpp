@@ -96,7 +96,7 @@ bool PoseBroadcaster::watchdog_expired(std::int64_t now_ns) const { return now_n
 PoseStatus PoseBroadcaster::status() const {
   if (watchdog_expired(clock_.now_ns())) return PoseStatus::kLost;
   if (!latest_) return PoseStatus::kInitialising;
-  if (consecutive_failures_ >= config_.lost_after_failed_frames) return PoseStatus::kLost;
+  if (latest_->lost || consecutive_failures_ >= config_.lost_after_failed_frames) return PoseStatus::kLost;
   return latest_->registered ? PoseStatus::kTracking : PoseStatus::kDegraded;
 }
 

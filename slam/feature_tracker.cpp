@@ -302,6 +302,20 @@ void FeatureTracker::correct(const Eigen::Isometry3d& correction) {
   for (TrackedFrame& tracked : frames_) tracked.T_world_cam = lie::renormalised(correction * tracked.T_world_cam);
 }
 
+void FeatureTracker::relocalise(const Eigen::Isometry3d& T_world_cam, const Matrix6d& covariance,
+                                FrameResult& result) {
+  result.T_world_cam = T_world_cam;
+  result.status = FrameStatus::kTracking;
+  result.failure_reason = {};
+  motion_.relocalised(T_world_cam);
+  new_reference_ = true;
+  chain_restarted_ = false;
+  // The pose is the key-frame's moved by one registration: as certain as that registration. The
+  // odom pose's chain goes on (the jump is the map frame's).
+  step_covariance_ = covariance;
+  current_covariance_ = covariance;
+}
+
 void FeatureTracker::end_frame(FrameResult& result) {
   frames_[static_cast<std::size_t>(current_)].T_world_cam = result.T_world_cam;
   frames_[static_cast<std::size_t>(current_)].odom_covariance = odom_covariance_;

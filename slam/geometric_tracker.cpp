@@ -100,6 +100,14 @@ void GeometricTracker::correct(const Eigen::Isometry3d& correction) {
   T_world_target_ = lie::renormalised(correction * T_world_target_);
 }
 
+void GeometricTracker::relocalise(const Eigen::Isometry3d& T_world_cam, const Eigen::Matrix<double, 6, 6>& /*covariance*/,
+                                  FrameResult& result) {
+  result.T_world_cam = T_world_cam;
+  result.status = FrameStatus::kTracking;
+  result.failure_reason = {};
+  motion_.relocalised(T_world_cam);
+}
+
 void GeometricTracker::end_frame(FrameResult& result) {
   // A frame without features cannot be the next frame's target; the last good one stays.
   if (features_[static_cast<std::size_t>(current_)].count > 0 || previous_ < 0) {

@@ -18,6 +18,8 @@ class GeometricTracker final : public Tracker {
   [[nodiscard]] TrackedFeatures features() const override;
   [[nodiscard]] Eigen::Matrix<double, 6, 6> keyframe_edge_information(const FrameResult& result) const override;
   void correct(const Eigen::Isometry3d& correction) override;
+  void relocalise(const Eigen::Isometry3d& T_world_cam, const Eigen::Matrix<double, 6, 6>& covariance,
+                  FrameResult& result) override;
   void end_frame(FrameResult& result) override;
 
  private:

@@ -75,4 +75,11 @@ void MotionModel::finish(const Eigen::Isometry3d& T_world_previous, const nav::M
   }
 }
 
+void MotionModel::relocalised(const Eigen::Isometry3d& T_world_cam) {
+  last_motion_ = Eigen::Isometry3d::Identity();
+  T_world_last_tracked_ = T_world_cam;
+  failed_in_a_row_ = 0;
+  resumed_ = false;
+}
+
 }  // namespace rankslam::slam

@@ -27,7 +27,8 @@ SlamLoop::SlamLoop(const SlamConfig& config, const hal::Calibration& calibration
       arbiter_(config.wheels, calibration.rgb.T_base_cam),
       keyframe_store_(make_keyframe_store(config_)),
       backend_(config_, calibration.rgb.T_base_cam, calibration.wheels.has_value()),
-      loop_closer_(config_, keyframe_store_, registrar_, geometric_, backend_) {
+      loop_closer_(config_, keyframe_store_, registrar_, geometric_, backend_),
+      relocaliser_(config_, keyframe_store_, registrar_) {
   images_.warm_up();
   if (const std::string error = team_.start(config_.threads); !error.empty()) {
     throw std::invalid_argument("slam.threads: " + error);
@@ -46,9 +47,91 @@ FrameResult SlamLoop::process(const hal::RgbdFrame& frame, const nav::MotionPrio
   FrameResult result;
   result.wheels.prior_given = prior != nullptr;
   tracker_->track(frame, prior, result);
+  relocalise(result);
   finish_frame(frame, prior, result);
   tracker_->end_frame(result);
   return result;
+}
+
+void SlamLoop::search_loaded_map() {
+  in_map_ = false;
+  searching_ = true;
+  searched_frames_ = 0;
+  search_start_sequence_ = keyframe_sequence_;
+  relocaliser_.reset();
+}
+
+void SlamLoop::relocalise(FrameResult& result) {
+  failed_in_a_row_ = result.status == FrameStatus::kFailed ? failed_in_a_row_ + 1 : 0;
+  const int after = config_.relocalisation.after_failed_frames;
+  if (!searching_) {
+    // The search needs descriptors to rank key-frames with, and key-frames.
+    if (after == 0 || failed_in_a_row_ < after || keyframe_layout(config_).photometric_features == 0 ||
+        keyframe_store_.size() == 0) {
+      return;
+    }
+    searching_ = true;
+    searched_frames_ = 0;
+    search_start_sequence_ = keyframe_sequence_;
+    relocaliser_.reset();
+  }
+  // Outside the map's frame the pose tracking gives is not the map's.
+  if (!in_map_) result.status = FrameStatus::kLost;
+  ++searched_frames_;
+  Relocalisation found;
+  if (!relocaliser_.search(tracker_->features(), loop_closer_.threshold(), result, found)) {
+    // Tracking that went on after the failure without being found again within one sweep of the
+    // store (and the confirmation) is on new ground: the search ends.
+    const int sweep = (keyframe_store_.size() + config_.relocalisation.keyframes_per_frame - 1) /
+                      config_.relocalisation.keyframes_per_frame;
+    if (in_map_ && result.status == FrameStatus::kTracking &&
+        searched_frames_ >= sweep + config_.relocalisation.confirm_frames) {
+      searching_ = false;
+    }
+    return;
+  }
+  searching_ = false;
+  if (in_map_ && result.status == FrameStatus::kTracking) {
+    // Tracking went on after the failure: where the place found agrees with it within the drift
+    // a loop closure may correct, tracking was right (the loop closure is the back-end's).
+    const StoredKeyframe& keyframe = keyframe_store_.slot(found.slot);
+    const double travelled_m =
+        path_m_ + (T_world_last_keyframe_.inverse() * result.T_world_cam).translation().norm() - keyframe.path_m;
+    const Eigen::Isometry3d difference = result.T_world_cam.inverse() * found.T_world_cam;
+    if (difference.translation().norm() <= config_.loop.max_correction_m + config_.loop.drift_per_m * travelled_m &&
+        lie::rotation_deg(difference) <= config_.loop.max_correction_deg + config_.loop.drift_deg_per_m * travelled_m) {
+      return;
+    }
+  }
+  if (in_map_) {
+    // Tracking since the failure was not where the map is (a kidnapped robot, or failed frames):
+    // its poses are withdrawn and the key-frames it made retired.
+    result.retracted_frames = searched_frames_ - 1 + (config_.relocalisation.after_failed_frames - 1);
+    for (int slot = 0; slot < keyframe_store_.capacity(); ++slot) {
+      const StoredKeyframe& keyframe = keyframe_store_.slot(slot);
+      if (!keyframe.used || keyframe.sequence <= search_start_sequence_) continue;
+      if (keyframe.node >= 0) backend_.remove_node(keyframe.node);
+      keyframe_store_.release(slot);
+      ++retired_keyframes_;
+      rebuild_map_ = true;
+    }
+  }
+  const Eigen::Isometry3d T_world_held = result.T_world_cam;
+  tracker_->relocalise(found.T_world_cam,
+                       lie::symmetric_inverse(backend_.registration_information(
+                           found.photometric_inliers + found.geometric_inliers, found.noise_scale)),
+                       result);
+  result.relocalised = true;
+  // The map frame moved under the pose tracking held, as under a graph solve.
+  result.map_correction = lie::renormalised(found.T_world_cam * T_world_held.inverse());
+  result.graph_applied = true;
+  // The next key-frame's sequential edge starts at the key-frame the frame was found with.
+  latest_keyframe_slot_ = found.slot;
+  T_world_last_keyframe_ = keyframe_store_.slot(found.slot).T_world_cam;
+  backend_.restart_wheel_motion();
+  in_map_ = true;
+  failed_in_a_row_ = 0;
+  ++relocalisations_;
 }
 
 void SlamLoop::finish_frame(const hal::RgbdFrame& frame, const nav::MotionPrior* prior, FrameResult& result) {
@@ -154,7 +237,8 @@ void SlamLoop::finish() {
     loop_closer_.advance(0, ignored);
   }
   backend_.finish(keyframe_store_, [this](const Eigen::Isometry3d& correction) { correct_tracking(correction); });
-  if (loop_closer_.closures() == 0) return;  // the live map already sits on the only poses there are
+  // The live map already sits on the only poses there are unless they moved or some were retired.
+  if (loop_closer_.closures() == 0 && !rebuild_map_) return;
   map_.rebuild(keyframe_store_);
 }
 

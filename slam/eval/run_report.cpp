@@ -24,7 +24,8 @@ void StatusCounts::add(const slam::FrameResult& result) {
     case slam::FrameStatus::kFirstFrame:
     case slam::FrameStatus::kTracking: ++tracking; break;
     case slam::FrameStatus::kWheels: ++degraded; break;
-    case slam::FrameStatus::kFailed: ++lost; break;
+    case slam::FrameStatus::kFailed:
+    case slam::FrameStatus::kLost: ++lost; break;
   }
   if (result.wheels.disagree) ++disagreements;
   if (result.wheels.wheels_trusted) ++wheels_trusted;
@@ -193,6 +194,27 @@ void add_odom_errors(std::vector<FrameRecord>& records, const Trajectory& ground
 bool is_false_closure(const RelativePoseError& error) {
   return error.has_ground_truth &&
          (error.translation_m > kFalseClosureTranslation_m || error.rotation_deg > kFalseClosureRotation_deg);
+}
+
+std::vector<RelocalisationError> relocalisation_errors(const Trajectory& ground_truth, const AteResult& ate,
+                                                       const std::vector<RelocalisationRecord>& records,
+                                                       double max_difference_s) {
+  std::vector<RelocalisationError> errors(records.size());
+  for (std::size_t r = 0; r < records.size(); ++r) {
+    const StampedPose* nearest = nullptr;
+    for (const StampedPose& pose : ground_truth) {
+      if (nearest == nullptr || std::abs(pose.stamp_s - records[r].stamp_s) < std::abs(nearest->stamp_s - records[r].stamp_s)) {
+        nearest = &pose;
+      }
+    }
+    if (nearest == nullptr || std::abs(nearest->stamp_s - records[r].stamp_s) > max_difference_s) continue;
+    errors[r] = {true, (ate.T_gtworld_estworld * records[r].T_world_cam.translation() - nearest->T_world_cam.translation()).norm()};
+  }
+  return errors;
+}
+
+bool is_false_relocalisation(const RelocalisationError& error) {
+  return error.has_ground_truth && error.translation_m > kFalseClosureTranslation_m;
 }
 
 std::string loop_closures_csv(const std::vector<slam::LoopClosure>& closures,

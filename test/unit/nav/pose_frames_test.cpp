@@ -456,6 +456,25 @@ TEST(PoseBroadcaster, FailedRegistrationsDegradeThenLose) {
   EXPECT_EQ(broadcaster.status(), PoseStatus::kTracking);
 }
 
+TEST(PoseBroadcaster, APoseOutsideTheMapIsLostAtOnceEvenWithWheels) {
+  RecordingBus bus;
+  ManualClock clock;
+  PoseOutputConfig config;
+  config.lost_after_failed_frames = 3;
+  PoseBroadcaster broadcaster(config, bus, clock);
+  PoseSample sample;
+  sample.registered = false;
+  sample.wheels_only = true;
+  sample.lost = true;
+  broadcaster.update(sample);
+  EXPECT_EQ(broadcaster.status(), PoseStatus::kLost);
+  sample.lost = false;
+  sample.registered = true;
+  sample.wheels_only = false;
+  broadcaster.update(sample);
+  EXPECT_EQ(broadcaster.status(), PoseStatus::kTracking);
+}
+
 TEST(PoseBroadcaster, WheelsOnlyFramesStayDegradedForAsLongAsTheyLast) {
   RecordingBus bus;
   ManualClock clock;

@@ -39,6 +39,8 @@ struct PoseSample {
   /// With registered false: the wheel odometry carries the pose. DEGRADED for as long as it
   /// lasts; such frames do not count towards lost_after_failed_frames.
   bool wheels_only = false;
+  /// The pose is not in the map's frame (a loaded map not found yet): LOST at once.
+  bool lost = false;
   /// Vision overruled the wheels on this frame (slip); PoseQuality.WheelSlip.
   bool wheel_slip = false;
   std::optional<std::uint8_t> inlier_percent;

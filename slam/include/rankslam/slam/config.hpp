@@ -163,6 +163,30 @@ struct LoopConfig {
   }
 };
 
+/// Relocalisation (docs/methods.md §13): finding the camera in the stored key-frames after
+/// tracking was lost or in a loaded map. Keys `slam.relocalise_*`.
+struct RelocalisationConfig {
+  // Failed registrations in a row that start a search of the whole map: a kidnapped robot fails
+  // once and then tracks on from the wrong pose, so one is enough. 0: never.
+  int after_failed_frames = 1;
+  // Stored key-frames the frame is registered with per frame while searching: bounds a searching
+  // frame's cost (about 2 ms each); the whole store takes key-frames / this many frames.
+  int keyframes_per_frame = 8;
+  // Consecutive frames whose relocalisations must agree (within max_deviation_*) before the
+  // pose is taken: one registration against a repeated texture can pass every other check.
+  int confirm_frames = 2;
+
+  template <typename Visitor>
+  void visit_parameters(Visitor&& visit) {
+    visit("relocalise_after_failed_frames", after_failed_frames, 0, 1000, "",
+          "failed registrations in a row that start a search of the whole map (0: never)");
+    visit("relocalise_keyframes_per_frame", keyframes_per_frame, 1, 65536, "",
+          "stored key-frames registered per frame while searching");
+    visit("relocalise_confirm_frames", confirm_frames, 1, 100, "",
+          "consecutive frames whose relocalisations must agree before the pose is taken");
+  }
+};
+
 /// The pose graph (docs/methods.md §8, §11): edge weights and the optimiser. Keys `slam.graph_*`.
 struct GraphConfig {
   // Error of a registration on one well-fitting match (graph::information_from_matches); a worse
@@ -271,6 +295,7 @@ struct SlamConfig {
   FusedConfig fused;
   MapConfig map;
   LoopConfig loop;
+  RelocalisationConfig relocalisation;
   GraphConfig graph;
   int seed = 1;
 
@@ -342,6 +367,7 @@ struct SlamConfig {
     fused.visit_parameters(visit);
     map.visit_parameters(visit);
     loop.visit_parameters(visit);
+    relocalisation.visit_parameters(visit);
     graph.visit_parameters(visit);
     visit("seed", seed, 0, 2147483647, "", "random seed: equal seeds give equal results");
   }

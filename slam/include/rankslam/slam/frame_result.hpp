@@ -19,6 +19,9 @@ enum class FrameStatus : std::uint8_t {
   kTracking,    ///< Registered against the tracking key-frame or, failing that, the previous frame.
   kFailed,      ///< Registration failed, no wheel prior: the pose was propagated at constant velocity.
   kWheels,      ///< Registration failed or was overruled: the pose follows the wheel odometry prior.
+  /// Tracking lost (or a loaded map not yet found), no wheel prior: the pose is unknown while the
+  /// loop searches the stored key-frames (docs/methods.md §13).
+  kLost,
 };
 
 [[nodiscard]] constexpr std::string_view to_string(FrameStatus status) {
@@ -27,6 +30,7 @@ enum class FrameStatus : std::uint8_t {
     case FrameStatus::kTracking: return "tracking";
     case FrameStatus::kFailed: return "failed";
     case FrameStatus::kWheels: return "wheels";
+    case FrameStatus::kLost: return "lost";
   }
   return "unknown";
 }
@@ -77,9 +81,17 @@ struct FrameResult {
   bool loop_closure = false;
   /// Loop-closure candidates registered at this frame.
   int loop_candidates = 0;
-  /// An optimised pose graph was applied at this frame: the pose jumped by the map correction,
-  /// which every tracked pose took: T_world_cam(after) = map_correction * T_world_cam(before).
-  /// Identity when none was applied.
+  /// The frame was found in the stored key-frames after tracking was lost (or in a loaded map):
+  /// its pose is the relocalisation's, and map_correction moves the pose tracking held onto it.
+  bool relocalised = false;
+  /// Stored key-frames the frame was registered with while searching (relocalisation).
+  int relocalisation_candidates = 0;
+  /// With relocalised: this many frames just before this one had poses tracking gave away from
+  /// the map (since the failure that started the search); they are withdrawn.
+  int retracted_frames = 0;
+  /// An optimised pose graph (or a relocalisation) was applied at this frame: the pose jumped by
+  /// the map correction, which every tracked pose took: T_world_cam(after) = map_correction *
+  /// T_world_cam(before). Identity when none was applied.
   bool graph_applied = false;
   Eigen::Isometry3d map_correction = Eigen::Isometry3d::Identity();
   /// Covariance of the frame's pose accumulated since the first frame (the odom pose, which a

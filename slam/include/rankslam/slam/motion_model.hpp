@@ -44,6 +44,9 @@ class MotionModel {
   /// Ends a registered frame: a tracked one updates the model; a failed one takes the wheels'
   /// motion (kWheels) or extrapolates; writes the pose into `result`.
   void finish(const Eigen::Isometry3d& T_world_previous, const nav::MotionPrior* prior, FrameResult& result);
+  /// The current frame was relocalised at T_world_cam: the motion since the last tracked frame is
+  /// unknown, so the next prediction holds the pose.
+  void relocalised(const Eigen::Isometry3d& T_world_cam);
 
  private:
   const SlamConfig& config_;

@@ -12,6 +12,7 @@
 #include "rankslam/slam/frame_result.hpp"
 #include "rankslam/slam/keyframe_store.hpp"
 #include "rankslam/slam/loop_closer.hpp"
+#include "rankslam/slam/relocaliser.hpp"
 #include "rankslam/slam/map_builder.hpp"
 #include "rankslam/slam/point_map.hpp"
 #include "rankslam/slam/registrar.hpp"
@@ -55,6 +56,11 @@ class SlamLoop {
   /// last LoopCloser::kClosureLogMinCapacity or 4·loop_max_candidates are kept, whichever is
   /// more: read them after each frame to see every one).
   [[nodiscard]] const LoopClosure* loop_closure(int index) const { return loop_closer_.closure(index); }
+  /// The store holds a map of an earlier run (set-up, before the first frame): frames are kLost
+  /// until one is found in it, and poses are in its frame from then on.
+  void search_loaded_map();
+  /// Frames found in the stored key-frames after tracking was lost (or in a loaded map).
+  [[nodiscard]] int relocalisations() const { return relocalisations_; }
   /// Key-frames retired from the full store.
   [[nodiscard]] int retired_keyframes() const { return retired_keyframes_; }
   /// The adaptive loop-closure threshold ε now.
@@ -85,6 +91,11 @@ class SlamLoop {
   /// Submits a pending graph and applies a finished optimisation (moving the tracking state by
   /// the correction).
   void run_backend(FrameResult& result);
+  /// Relocalisation (docs/methods.md §13): after relocalise_after_failed_frames failed frames
+  /// without wheels, or until a loaded map is found, the frame is searched for in the stored
+  /// key-frames. A place found where tracking went on elsewhere (a kidnapped robot) or failed
+  /// moves the pose there; in a loaded map not yet found the status is kLost.
+  void relocalise(FrameResult& result);
   /// Moves every pose the tracking holds by a world-frame correction.
   void correct_tracking(const Eigen::Isometry3d& correction);
 
@@ -103,7 +114,20 @@ class SlamLoop {
   KeyframeStore keyframe_store_;
   Backend backend_;
   LoopCloser loop_closer_;
+  Relocaliser relocaliser_;
   std::unique_ptr<Tracker> tracker_;
+  /// Consecutive frames whose registration failed without wheels.
+  int failed_in_a_row_ = 0;
+  /// Searching the stored key-frames (for searched_frames_ frames); `in_map_` false: the poses
+  /// tracking gives are not in the map's frame (a loaded map not found yet).
+  bool searching_ = false;
+  int searched_frames_ = 0;
+  /// The newest key-frame when the search started: later ones were made by tracking since.
+  std::int64_t search_start_sequence_ = 0;
+  /// Key-frames were retired after a relocalisation: the map is rebuilt at the end.
+  bool rebuild_map_ = false;
+  bool in_map_ = true;
+  int relocalisations_ = 0;
 
   Eigen::Isometry3d T_world_last_keyframe_ = Eigen::Isometry3d::Identity();
   int keyframes_ = 0;

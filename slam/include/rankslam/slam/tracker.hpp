@@ -68,6 +68,10 @@ class Tracker {
   virtual void keyframe_stored() {}
   /// Moves every pose the tracker holds by a world-frame correction (a back-end solve).
   virtual void correct(const Eigen::Isometry3d& correction) = 0;
+  /// The frame just tracked was found in the map at `T_world_cam` with that pose's `covariance`:
+  /// it becomes the reference the next frames register against, and `result` tracking.
+  virtual void relocalise(const Eigen::Isometry3d& T_world_cam, const Eigen::Matrix<double, 6, 6>& covariance,
+                          FrameResult& result) = 0;
   /// Ends the frame; `result` holds its final pose.
   virtual void end_frame(FrameResult& result) = 0;
 };

@@ -99,6 +99,35 @@ void add_odom_errors(std::vector<FrameRecord>& records, const Trajectory& ground
 /// correct closure ever is: it joined two places that are not where the graph now puts them.
 [[nodiscard]] bool is_false_closure(const RelativePoseError& error);
 
+/// A frame found in the map after tracking was lost (or in a loaded map): its index among the
+/// processed frames, its stamp, the pose the relocalisation gave and the frames it withdrew.
+struct RelocalisationRecord {
+  std::uint64_t frame = 0;
+  double stamp_s = 0.0;
+  Eigen::Isometry3d T_world_cam = Eigen::Isometry3d::Identity();
+  int retracted_frames = 0;
+};
+
+/// A relocalised position against the ground truth, through the ATE's alignment of the whole
+/// run (a rotation error is not given: the ATE aligns positions only, which leave the rotation
+/// loose on a camera that mostly turns).
+struct RelocalisationError {
+  /// False when no ground-truth pose lies within max_difference_s of the stamp.
+  bool has_ground_truth = false;
+  double translation_m = 0.0;
+};
+
+/// Each relocalisation's error: T_gtworld_estworld·t_world_cam against the nearest ground-truth
+/// position.
+[[nodiscard]] std::vector<RelocalisationError> relocalisation_errors(const Trajectory& ground_truth,
+                                                                     const AteResult& ate,
+                                                                     const std::vector<RelocalisationRecord>& records,
+                                                                     double max_difference_s);
+
+/// A relocalisation farther from the ground truth than a correct loop closure ever is (the
+/// translation threshold of is_false_closure): it put the camera in another place.
+[[nodiscard]] bool is_false_relocalisation(const RelocalisationError& error);
+
 /// Each accepted loop closure, with its error against the ground truth where there is one (empty
 /// fields where there is none); CSV as frames_csv.
 [[nodiscard]] std::string loop_closures_csv(const std::vector<slam::LoopClosure>& closures,

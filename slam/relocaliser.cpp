@@ -1,0 +1,96 @@
+#include "rankslam/slam/relocaliser.hpp"
+
+#include "rankslam/core/lie.hpp"
+#include "rankslam/slam/registration_support.hpp"
+
+#include <algorithm>
+
+namespace rankslam::slam {
+
+Relocaliser::Relocaliser(const SlamConfig& config, const KeyframeStore& store, Registrar& registrar)
+    : config_(config), store_(store), registrar_(registrar) {}
+
+void Relocaliser::reset() {
+  cursor_ = 0;
+  agreeing_ = 0;
+}
+
+bool Relocaliser::search(const TrackedFeatures& frame, double threshold, FrameResult& result, Relocalisation& found) {
+  if (frame.photometric == nullptr) {
+    agreeing_ = 0;
+    return false;
+  }
+  // The last frame's key-frame first while confirming, then the next key-frames of the round
+  // robin; the registration with the most inliers is the frame's hypothesis.
+  Relocalisation best;
+  Relocalisation candidate;
+  int budget = config_.relocalisation.keyframes_per_frame;
+  if (agreeing_ > 0 && usable(last_slot_, *frame.photometric)) {
+    --budget;
+    ++result.relocalisation_candidates;
+    if (try_keyframe(last_slot_, frame, threshold, candidate, result)) best = candidate;
+  }
+  const int capacity = store_.capacity();
+  for (int visited = 0; visited < capacity && budget > 0; ++visited) {
+    const int slot = cursor_;
+    cursor_ = (cursor_ + 1) % capacity;
+    if ((agreeing_ > 0 && slot == last_slot_) || !usable(slot, *frame.photometric)) continue;
+    --budget;
+    ++result.relocalisation_candidates;
+    if (try_keyframe(slot, frame, threshold, candidate, result) &&
+        (best.slot < 0 || candidate.inliers > best.inliers)) {
+      best = candidate;
+    }
+  }
+  if (best.slot < 0) {
+    agreeing_ = 0;
+    return false;
+  }
+  // Consecutive relocalisations agree when they differ by no more than the tracker lets one
+  // frame's motion differ from the last.
+  const Eigen::Isometry3d step = T_world_last_.inverse() * best.T_world_cam;
+  const bool agrees = agreeing_ > 0 && step.translation().norm() <= config_.max_deviation_translation_m &&
+                      lie::rotation_deg(step) <= config_.max_deviation_rotation_deg;
+  agreeing_ = agrees ? agreeing_ + 1 : 1;
+  T_world_last_ = best.T_world_cam;
+  last_slot_ = best.slot;
+  if (agreeing_ < config_.relocalisation.confirm_frames) return false;
+  found = best;
+  reset();
+  return true;
+}
+
+bool Relocaliser::usable(int slot, const PhotometricFeatures& features) const {
+  const StoredKeyframe& stored = store_.slot(slot);
+  return stored.used && stored.node >= 0 && stored.photometric.source == features.source;
+}
+
+bool Relocaliser::try_keyframe(int slot, const TrackedFeatures& frame, double threshold, Relocalisation& found,
+                               FrameResult& result) {
+  const StoredKeyframe& stored = store_.slot(slot);
+  const bool with_geometry = frame.geometric != nullptr && stored.geometric.count > 0;
+  FrameResult scratch;
+  scratch.times = result.times;
+  const MotionEstimate estimate = registrar_.register_frames(
+      stored.photometric, stored.velocity, *frame.photometric, frame.velocity, scratch, Eigen::Isometry3d::Identity(),
+      Eigen::Isometry3d::Identity(), with_geometry ? &stored.geometric : nullptr,
+      with_geometry ? frame.geometric : nullptr, /*refine=*/false);
+  result.times = scratch.times;
+  if (!estimate.ok || !lie::is_finite_rigid(estimate.T_target_source)) return false;
+  // As a loop closure must: enough inliers for the adaptive threshold, spread in two directions.
+  const int photometric_inliers = with_geometry ? scratch.photometric_inliers : scratch.inliers;
+  const int geometric_inliers = with_geometry ? scratch.geometric_inliers : 0;
+  if (photometric_inliers + geometric_inliers < threshold) return false;
+  const InlierSpread spread = inlier_spread(estimate.T_target_source, registrar_.source_points(),
+                                            registrar_.target_points(), registrar_.correspondence_sigma_m());
+  if (spread.inliers < config_.min_inliers || spread.axes_m(1) < config_.loop.min_inlier_spread_m) return false;
+  found.T_world_cam = lie::renormalised(stored.T_world_cam * estimate.T_target_source);
+  found.slot = slot;
+  found.inliers = photometric_inliers + geometric_inliers;
+  found.photometric_inliers = photometric_inliers;
+  found.geometric_inliers = geometric_inliers;
+  found.noise_scale = estimate.noise_scale;
+  return true;
+}
+
+}  // namespace rankslam::slam

@@ -1,0 +1,178 @@
+// Relocalisation (docs/methods.md §13): TUM fr1_rpy_head with a second of frames cut out, so the
+// camera jumps (a kidnapped robot); frames of fr1_desk, recorded in the same room, after a map of
+// fr1_rpy_head; and simulated frames of a place the map has never seen.
+#include "rankslam/eval/metrics.hpp"
+#include "rankslam/eval/run_report.hpp"
+#include "rankslam/eval/trajectory.hpp"
+#include "rankslam/replay/replay_camera.hpp"
+#include "rankslam/sim/simulator.hpp"
+#include "rankslam/slam/slam_loop.hpp"
+
+#include <gtest/gtest.h>
+
+#include <unistd.h>
+
+#include <chrono>
+#include <cstdio>
+#include <filesystem>
+#include <string>
+#include <utility>
+#include <vector>
+
+namespace rankslam::slam {
+namespace {
+
+namespace fs = std::filesystem;
+
+fs::path tum(const char* sequence) { return fs::path(RANKSLAM_SHARED_DATA) / "tum" / sequence; }
+
+hal::RgbdFrame copy_of(const hal::RgbdFrame& frame) {
+  hal::RgbdFrame copy = frame;
+  copy.rgb = frame.rgb.clone();
+  copy.depth = frame.depth.clone();
+  copy.ir = frame.ir.clone();
+  return copy;
+}
+
+/// Frames [begin, end) of a recording, read once.
+std::vector<hal::RgbdFrame> read_frames(const fs::path& dir, int begin, int end, replay::Recording& recording) {
+  std::vector<hal::RgbdFrame> frames;
+  EXPECT_EQ(replay::open_recording(dir, recording), "");
+  replay::ReplayDepthCamera camera(recording, {});
+  EXPECT_EQ(camera.open(), "");
+  hal::RgbdFrame frame;
+  for (int index = 0; index < end && camera.read(frame, std::chrono::milliseconds(5000)) == hal::ReadStatus::kOk;
+       ++index) {
+    if (index >= begin) frames.push_back(copy_of(frame));
+  }
+  return frames;
+}
+
+struct SplicedRun {
+  eval::Trajectory estimate;  ///< as FramePipeline keeps it: no lost or withdrawn frames
+  std::vector<eval::RelocalisationRecord> relocalisations;
+  int failed = 0;
+};
+
+/// The frames through one loop, as the replay keeps their poses.
+SplicedRun run_spliced(const SlamConfig& config, const hal::Calibration& calibration,
+                       std::vector<hal::RgbdFrame>& frames) {
+  SplicedRun run;
+  SlamLoop loop(config, calibration);
+  loop.set_synchronous_backend(true);  // results independent of thread timing, as in replay
+  std::uint64_t index = 0;
+  for (hal::RgbdFrame& frame : frames) {
+    const FrameResult result = loop.process(frame);
+    if (result.relocalised) {
+      for (int i = 0; i < result.retracted_frames && !run.estimate.empty(); ++i) run.estimate.pop_back();
+      run.relocalisations.push_back({index, frame.stamp_s, result.T_world_cam, result.retracted_frames});
+    }
+    if (result.status == FrameStatus::kFailed || result.status == FrameStatus::kLost) ++run.failed;
+    if (result.status != FrameStatus::kLost) run.estimate.push_back({frame.stamp_s, result.T_world_cam});
+    ++index;
+  }
+  return run;
+}
+
+TEST(RelocalisationBench, KidnappedOnFr1RpyHeadFoundWithinThirtyFramesOverSeeds) {
+  if (!fs::is_directory(tum("fr1_rpy_head"))) GTEST_SKIP() << "no shared data at " << tum("fr1_rpy_head");
+  replay::Recording recording;
+  std::vector<hal::RgbdFrame> frames = read_frames(tum("fr1_rpy_head"), 0, 180, recording);
+  ASSERT_EQ(frames.size(), 180u);
+  auto ground_truth = eval::read_tum_trajectory(*recording.ground_truth);
+  ASSERT_TRUE(ground_truth) << ground_truth.error();
+  // Frames 0-99, then 130-179 (their own stamps: the ground truth's): the camera jumps by a
+  // second of its motion.
+  constexpr int kJumpFrom = 100;
+  constexpr int kJumpTo = 130;
+  std::vector<hal::RgbdFrame> spliced;
+  for (int i = 0; i < static_cast<int>(frames.size()); ++i) {
+    if (i < kJumpFrom || i >= kJumpTo) spliced.push_back(copy_of(frames[static_cast<std::size_t>(i)]));
+  }
+  for (int seed = 1; seed <= 3; ++seed) {
+    SlamConfig config;
+    config.seed = seed;
+    std::vector<hal::RgbdFrame> copy;
+    for (const hal::RgbdFrame& frame : spliced) copy.push_back(copy_of(frame));
+    const SplicedRun run = run_spliced(config, recording.calibration, copy);
+    auto ate = eval::compute_ate(ground_truth.value(), run.estimate);
+    ASSERT_TRUE(ate) << ate.error();
+    const std::vector<eval::RelocalisationError> errors =
+        eval::relocalisation_errors(ground_truth.value(), ate.value(), run.relocalisations, 0.02);
+    ASSERT_FALSE(run.relocalisations.empty()) << "seed " << seed << ": never relocalised";
+    const eval::RelocalisationRecord& first = run.relocalisations.front();
+    std::printf("seed %d: relocalised at spliced frame %llu (jump at %d), error %.4f m, %zu relocalisations, ATE %.4f m\n",
+                seed, static_cast<unsigned long long>(first.frame), kJumpFrom, errors.front().translation_m,
+                run.relocalisations.size(), ate.value().translation_m.rmse);
+    EXPECT_GE(first.frame, static_cast<std::uint64_t>(kJumpFrom)) << "seed " << seed;
+    EXPECT_LT(first.frame, static_cast<std::uint64_t>(kJumpFrom + 30)) << "seed " << seed;
+    ASSERT_TRUE(errors.front().has_ground_truth);
+    EXPECT_LE(errors.front().translation_m, 0.05) << "seed " << seed;
+    for (const eval::RelocalisationError& error : errors) EXPECT_FALSE(eval::is_false_relocalisation(error));
+  }
+}
+
+TEST(RelocalisationBench, AnotherSequenceOfTheRoomIsFoundWhereTheMotionCaptureIsInRpyHeadsMap) {
+  if (!fs::is_directory(tum("fr1_rpy_head")) || !fs::is_directory(tum("fr1_desk_9"))) {
+    GTEST_SKIP() << "no shared data at " << tum("fr1_rpy_head") << " and " << tum("fr1_desk_9");
+  }
+  // fr1_desk was recorded in the room of fr1_rpy, and both ground truths are in its motion
+  // capture frame: after a map of the head's first 100 frames, the desk's frames are searched
+  // for in it and the place found is compared with where the motion capture saw the camera.
+  replay::Recording recording;
+  std::vector<hal::RgbdFrame> frames = read_frames(tum("fr1_rpy_head"), 0, 100, recording);
+  replay::Recording other;
+  std::vector<hal::RgbdFrame> desk = read_frames(tum("fr1_desk_9"), 0, 9, other);
+  ASSERT_EQ(desk.size(), 9u);
+  for (hal::RgbdFrame& frame : desk) frames.push_back(std::move(frame));
+  const SplicedRun run = run_spliced(SlamConfig{}, recording.calibration, frames);
+  ASSERT_FALSE(run.relocalisations.empty()) << "the desk's frames were not found in the map";
+  auto head_truth = eval::read_tum_trajectory(*recording.ground_truth);
+  auto desk_truth = eval::read_tum_trajectory(*other.ground_truth);
+  ASSERT_TRUE(head_truth && desk_truth);
+  // The map frame in the motion capture's: the alignment of the head's own frames.
+  const eval::Trajectory head(run.estimate.begin(), run.estimate.begin() + 100);
+  auto ate = eval::compute_ate(head_truth.value(), head);
+  ASSERT_TRUE(ate) << ate.error();
+  const std::vector<eval::RelocalisationError> errors =
+      eval::relocalisation_errors(desk_truth.value(), ate.value(), run.relocalisations, 0.02);
+  for (std::size_t i = 0; i < errors.size(); ++i) {
+    std::printf("desk frame %llu found %.4f m from the motion capture's position\n",
+                static_cast<unsigned long long>(run.relocalisations[i].frame - 100), errors[i].translation_m);
+    ASSERT_TRUE(errors[i].has_ground_truth);
+    // The alignment of a camera that mostly turns leaves centimetres across the room.
+    EXPECT_LE(errors[i].translation_m, 0.10);
+  }
+}
+
+TEST(RelocalisationBench, AnUnseenPlaceIsNotFoundInTheMap) {
+  // A map of the simulated office, then frames of the poster wall, which it has never seen: the
+  // search runs on each of them and must find none in the map.
+  const fs::path directory = fs::temp_directory_path() / ("rankslam_bench_unseen_" + std::to_string(::getpid()));
+  fs::remove_all(directory);
+  for (const char* scene : {"office", "poster-wall"}) {
+    sim::SimulationOptions options;
+    options.scene = scene;
+    options.out_dir = directory / scene;
+    options.frames = std::string(scene) == "office" ? 60 : 15;
+    options.seed = 1;
+    ASSERT_EQ(sim::simulate_recording(options, nullptr), "");
+  }
+  replay::Recording recording;
+  std::vector<hal::RgbdFrame> frames = read_frames(directory / "office", 0, 60, recording);
+  replay::Recording other;
+  std::vector<hal::RgbdFrame> unseen = read_frames(directory / "poster-wall", 0, 15, other);
+  double stamp_s = frames.back().stamp_s;
+  for (hal::RgbdFrame& frame : unseen) {
+    stamp_s += 1.0 / 30.0;
+    frame.stamp_s = stamp_s;
+    frames.push_back(std::move(frame));
+  }
+  const SplicedRun run = run_spliced(SlamConfig{}, recording.calibration, frames);
+  fs::remove_all(directory);
+  EXPECT_TRUE(run.relocalisations.empty()) << "found at frame " << run.relocalisations.front().frame;
+  EXPECT_GE(run.failed, 1);
+}
+
+}  // namespace
+}  // namespace rankslam::slam
