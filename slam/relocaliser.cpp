@@ -77,6 +77,8 @@ bool Relocaliser::try_keyframe(int slot, const TrackedFeatures& frame, double th
       with_geometry ? frame.geometric : nullptr, /*refine=*/false);
   result.times = scratch.times;
   if (!estimate.ok || !lie::is_finite_rigid(estimate.T_target_source)) return false;
+  // Inliers that fit far worse than their noise, as the tracker would not take for its reference.
+  if (estimate.noise_scale > config_.reference_max_noise_scale) return false;
   // As a loop closure must: enough inliers for the adaptive threshold, spread in two directions.
   const int photometric_inliers = with_geometry ? scratch.photometric_inliers : scratch.inliers;
   const int geometric_inliers = with_geometry ? scratch.geometric_inliers : 0;

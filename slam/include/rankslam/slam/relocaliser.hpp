@@ -26,7 +26,8 @@ struct Relocalisation {
 /// Relocalisation (docs/methods.md §13): while searching, each frame is registered (photometric
 /// and, in fused mode, geometric features) against a bounded number of stored key-frames, round
 /// robin over the whole store. A registration that passes the loop-closure checks (the adaptive
-/// threshold ε, inliers spread in two directions) is the frame's hypothesis, the one with the
+/// threshold ε, inliers spread in two directions) and whose inliers fit their noise as a
+/// tracking reference's must (reference_max_noise_scale) is the frame's hypothesis, the one with the
 /// most inliers where several pass; it is taken once relocalise_confirm_frames consecutive
 /// frames agree. Allocates nothing.
 class Relocaliser {
