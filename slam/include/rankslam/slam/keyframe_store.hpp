@@ -98,6 +98,23 @@ class AdaptiveLoopThreshold {
   void add(int photometric_inliers, int geometric_inliers);
   [[nodiscard]] int count() const { return count_; }
 
+  /// The running sums, for saving and restoring (a map file).
+  struct State {
+    int count = 0;
+    double sum_p = 0.0;
+    double sum_sq_p = 0.0;
+    double sum_g = 0.0;
+    double sum_sq_g = 0.0;
+  };
+  [[nodiscard]] State state() const { return {count_, sum_p_, sum_sq_p_, sum_g_, sum_sq_g_}; }
+  void restore(const State& state) {
+    count_ = state.count;
+    sum_p_ = state.sum_p;
+    sum_sq_p_ = state.sum_sq_p;
+    sum_g_ = state.sum_g;
+    sum_sq_g_ = state.sum_sq_g;
+  }
+
  private:
   double initial_;
   double deviations_;
