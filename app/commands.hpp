@@ -24,6 +24,8 @@ struct ReplayArgs {
   bool decode_ahead = false;
   /// --frame: "camera", "base" or empty (base when the mounting is known), see OutputFrame.
   std::string frame;
+  /// --save-map: where to write the map file at the end (empty: none).
+  std::filesystem::path save_map;
 };
 
 struct SimulateArgs {

@@ -41,6 +41,7 @@ int main(int argc, char** argv) {
   replay_cmd->add_option("--frame", replay.frame, "Frame of trajectory.txt and map.ply: base (the map frame of the base, x forward, z up; the default when the calibration gives T_base_cam) or camera (the first camera's optical frame)")
       ->check(CLI::IsMember({"camera", "base"}));
   replay_cmd->add_flag("--decode-ahead", replay.decode_ahead, "Decode the next frames while the loop runs: a faster replay, but decoding then competes with the loop for the cores and its timings include that (without it, as on the robot, they do not)");
+  replay_cmd->add_option("--save-map", replay.save_map, "Write the map (key-frames, pose graph; docs/map-format.md) to this file at the end");
   replay_cmd->add_flag("--no-wheels", replay.no_wheels, "Ignore the recording's can.log: vision only (the wheel odometry is otherwise the motion prior and the fallback)");
 
   SimulateArgs simulate;

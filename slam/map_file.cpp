@@ -69,8 +69,9 @@ class ByteWriter {
   }
   void bytes(const unsigned char* data, std::size_t n) { out_.insert(out_.end(), data, data + n); }
   [[nodiscard]] std::size_t position() const { return out_.size(); }
-  void patch_u64(std::size_t at, std::uint64_t value) {
-    for (std::size_t i = 0; i < 8; ++i) out_[at + i] = static_cast<unsigned char>(value >> (8U * i));
+  /// Overwrites `n` bytes at `at` with `value`, little-endian.
+  void patch(std::size_t at, std::uint64_t value, std::size_t n) {
+    for (std::size_t i = 0; i < n; ++i) out_[at + i] = static_cast<unsigned char>(value >> (8U * i));
   }
   /// Appends the CRC32 of the bytes from `from` to here.
   void crc_since(std::size_t from) {
@@ -411,7 +412,7 @@ void write_section(ByteWriter& out, MapSection tag, Write&& write) {
   out.u32(static_cast<std::uint32_t>(tag));
   out.u64(0);
   write(out);
-  out.patch_u64(start + 4, out.position() - start - 12);
+  out.patch(start + 4, out.position() - start - 12, 8);
   out.crc_since(start);
 }
 
@@ -424,9 +425,9 @@ struct SectionView {
 };
 
 /// Calls visit(section) for each section between the header and the trailer, checking framing
-/// and CRC first.
+/// and (when `verify`: on the first pass) CRC first.
 template <class Visit>
-void for_each_section(std::span<const unsigned char> body, std::size_t body_offset, Visit&& visit) {
+void for_each_section(std::span<const unsigned char> body, std::size_t body_offset, bool verify, Visit&& visit) {
   std::size_t at = 0;
   for (int index = 1; at < body.size(); ++index) {
     const std::size_t offset = body_offset + at;
@@ -440,7 +441,7 @@ void for_each_section(std::span<const unsigned char> body, std::size_t body_offs
     }
     const auto payload_length = static_cast<std::size_t>(length);
     ByteReader crc(body.subspan(at + 12 + payload_length, 4), {});
-    if (crc.u32() != crc32_of(body.subspan(at, 12 + payload_length))) {
+    if (verify && crc.u32() != crc32_of(body.subspan(at, 12 + payload_length))) {
       throw MapFault("checksum mismatch in " + where + " (" + tag_name(tag) + ")");
     }
     visit(SectionView{index, tag, offset, body.subspan(at + 12, payload_length)});
@@ -523,20 +524,29 @@ void encode_map(const KeyframeStore& store, const graph::PoseGraph& graph, const
   const std::size_t software_length = std::min(software.size(), kMaxSoftwareVersion);
   out.u16(static_cast<std::uint16_t>(software_length));
   out.bytes(reinterpret_cast<const unsigned char*>(software.data()), software_length);
-  const std::size_t header_end = out.position() + 4;
+  const std::size_t header_crc_at = out.position();
+  out.u32(0);
 
-  // The header's CRC covers the final file size: patch it in first.
-  std::vector<unsigned char> body;
-  ByteWriter sections(body);
-  write_section(sections, MapSection::kPoseGraph, [&](ByteWriter& w) { write_graph(w, graph); });
-  write_section(sections, MapSection::kLoopThreshold, [&](ByteWriter& w) { write_threshold(w, threshold); });
+  std::size_t estimate = 1024;
+  for (int i = 0; i < store.capacity(); ++i) {
+    const StoredKeyframe& keyframe = store.slot(i);
+    if (!keyframe.used) continue;
+    estimate += 512 + keyframe.photometric.size() * kPhotometricRecordBytes +
+                static_cast<std::size_t>(keyframe.geometric.count) * kGeometricRecordBytes +
+                static_cast<std::size_t>(keyframe.geometric.cloud_count) * kCloudRecordBytes +
+                static_cast<std::size_t>(keyframe.point_count) * kPointRecordBytes;
+  }
+  bytes.reserve(estimate + static_cast<std::size_t>(graph.edge_count()) * kEdgeRecordBytes +
+                static_cast<std::size_t>(graph.capacity().max_nodes) * (13 + kPoseBytes));
+  write_section(out, MapSection::kPoseGraph, [&](ByteWriter& w) { write_graph(w, graph); });
+  write_section(out, MapSection::kLoopThreshold, [&](ByteWriter& w) { write_threshold(w, threshold); });
   for (int i = 0; i < store.capacity(); ++i) {
     if (!store.slot(i).used) continue;
-    write_section(sections, MapSection::kKeyframe, [&](ByteWriter& w) { write_keyframe(w, i, store.slot(i)); });
+    write_section(out, MapSection::kKeyframe, [&](ByteWriter& w) { write_keyframe(w, i, store.slot(i)); });
   }
-  out.patch_u64(size_at, header_end + body.size() + kTrailerBytes);
-  out.crc_since(0);
-  out.bytes(body.data(), body.size());
+  // The header's CRC covers the file size, known only now.
+  out.patch(size_at, out.position() + kTrailerBytes, 8);
+  out.patch(header_crc_at, crc32_of(std::span<const unsigned char>(bytes).first(header_crc_at)), 4);
   out.crc_since(0);
 }
 
@@ -583,7 +593,7 @@ MapFileInfo decode_map(std::span<const unsigned char> bytes, const std::string& 
     int keyframes = 0;
     int graphs = 0;
     int thresholds = 0;
-    for_each_section(body, header.position(), [&](const SectionView& section) {
+    for_each_section(body, header.position(), true, [&](const SectionView& section) {
       keyframes += section.tag == static_cast<std::uint32_t>(MapSection::kKeyframe) ? 1 : 0;
       graphs += section.tag == static_cast<std::uint32_t>(MapSection::kPoseGraph) ? 1 : 0;
       thresholds += section.tag == static_cast<std::uint32_t>(MapSection::kLoopThreshold) ? 1 : 0;
@@ -609,7 +619,7 @@ MapFileInfo decode_map(std::span<const unsigned char> bytes, const std::string& 
                std::to_string(section.offset) + "): ";
       };
       // The graph first: key-frames name its nodes.
-      for_each_section(body, header.position(), [&](const SectionView& section) {
+      for_each_section(body, header.position(), false, [&](const SectionView& section) {
         ByteReader in(section.payload, context(section));
         if (section.tag == static_cast<std::uint32_t>(MapSection::kPoseGraph)) {
           read_graph(in, into.graph);
@@ -620,7 +630,7 @@ MapFileInfo decode_map(std::span<const unsigned char> bytes, const std::string& 
         }
         if (in.left() != 0) in.fail(std::to_string(in.left()) + " bytes left over");
       });
-      for_each_section(body, header.position(), [&](const SectionView& section) {
+      for_each_section(body, header.position(), false, [&](const SectionView& section) {
         if (section.tag != static_cast<std::uint32_t>(MapSection::kKeyframe)) return;
         ByteReader in(section.payload, context(section));
         read_keyframe(in, into.store, into.graph);
