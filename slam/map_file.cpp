@@ -1,5 +1,6 @@
 #include "rankslam/slam/map_file.hpp"
 
+#include "rankslam/core/fourcc.hpp"
 #include "rankslam/core/lie.hpp"
 #include "rankslam/hal/atomic_file.hpp"
 #include "rankslam/hal/regular_file.hpp"
@@ -25,19 +26,12 @@ constexpr std::size_t kMaxSoftwareVersion = 64;
 constexpr std::size_t kSectionFramingBytes = 4 + 8 + 4;
 constexpr std::size_t kTrailerBytes = 4;
 constexpr int kDescriptorBytes = 32;
+// Largest key-frame sequence number and closure count read: counting on from them cannot overflow.
+constexpr std::int32_t kMaxCount = std::int32_t{1} << 30;
 
 std::uint32_t crc32_of(std::span<const unsigned char> bytes) {
   // kMaxMapFileBytes keeps every length within zlib's uInt.
   return static_cast<std::uint32_t>(::crc32(0L, bytes.data(), static_cast<uInt>(bytes.size())));
-}
-
-std::string tag_name(std::uint32_t tag) {
-  std::string name(4, '?');
-  for (std::size_t i = 0; i < 4; ++i) {
-    const auto c = static_cast<char>((tag >> (8U * i)) & 0xFFU);
-    if (c >= 0x20 && c < 0x7F) name[i] = c;
-  }
-  return name;
 }
 
 /// A fault found while reading; decode_map names the file in front of it.
@@ -241,6 +235,11 @@ void read_keyframe(ByteReader& in, KeyframeStore& store, const graph::PoseGraph&
             " (generation " + std::to_string(keyframe.generation) + ") is not in the pose graph");
   }
   keyframe.sequence = in.i64();
+  // Bounded so that the loop's sequence counter can go on counting from the largest.
+  if (keyframe.sequence < 1 || keyframe.sequence > kMaxCount) {
+    in.fail("key-frame slot " + std::to_string(slot) + ": sequence " + std::to_string(keyframe.sequence) +
+            " out of range");
+  }
   keyframe.stamp_s = in.f64();
   keyframe.T_world_cam = in.pose();
   if (!lie::is_finite_rigid(keyframe.T_world_cam)) {
@@ -249,6 +248,9 @@ void read_keyframe(ByteReader& in, KeyframeStore& store, const graph::PoseGraph&
   keyframe.path_m = in.f64();
   for (int i = 0; i < 6; ++i) keyframe.velocity[i] = in.f64();
   keyframe.loop_closures = in.i32();
+  if (keyframe.loop_closures < 0 || keyframe.loop_closures > kMaxCount) {
+    in.fail("key-frame slot " + std::to_string(slot) + ": loop-closure count out of range");
+  }
 
   PhotometricFeatures& photometric = keyframe.photometric;
   photometric.clear();
@@ -398,7 +400,7 @@ void write_threshold(ByteWriter& out, const AdaptiveLoopThreshold& threshold) {
 void read_threshold(ByteReader& in, AdaptiveLoopThreshold& threshold) {
   AdaptiveLoopThreshold::State state;
   state.count = in.i32();
-  if (state.count < 0) in.fail("negative loop-closure count");
+  if (state.count < 0 || state.count > kMaxCount) in.fail("loop-closure count " + std::to_string(state.count) + " out of range");
   state.sum_p = in.f64();
   state.sum_sq_p = in.f64();
   state.sum_g = in.f64();
@@ -442,7 +444,7 @@ void for_each_section(std::span<const unsigned char> body, std::size_t body_offs
     const auto payload_length = static_cast<std::size_t>(length);
     ByteReader crc(body.subspan(at + 12 + payload_length, 4), {});
     if (verify && crc.u32() != crc32_of(body.subspan(at, 12 + payload_length))) {
-      throw MapFault("checksum mismatch in " + where + " (" + tag_name(tag) + ")");
+      throw MapFault("checksum mismatch in " + where + " (" + fourcc_to_string(tag) + ")");
     }
     visit(SectionView{index, tag, offset, body.subspan(at + 12, payload_length)});
     at += kSectionFramingBytes + payload_length;
@@ -615,7 +617,7 @@ MapFileInfo decode_map(std::span<const unsigned char> bytes, const std::string& 
     clear(into);
     try {
       const auto context = [](const SectionView& section) {
-        return "section " + std::to_string(section.index) + " (" + tag_name(section.tag) + " at byte " +
+        return "section " + std::to_string(section.index) + " (" + fourcc_to_string(section.tag) + " at byte " +
                std::to_string(section.offset) + "): ";
       };
       // The graph first: key-frames name its nodes.

@@ -10,6 +10,7 @@
 // A reader skips sections with tags it does not know, so a later version can add one (e.g.
 // place-recognition vectors) without breaking this one's files.
 
+#include "rankslam/core/fourcc.hpp"
 #include "rankslam/graph/pose_graph.hpp"
 #include "rankslam/hal/calibration.hpp"
 #include "rankslam/slam/config.hpp"
@@ -32,9 +33,9 @@ inline constexpr std::size_t kMaxMapFileBytes = std::size_t{2} << 30U;
 
 /// Section tags: four ASCII characters read as a little-endian word.
 enum class MapSection : std::uint32_t {
-  kKeyframe = 0x4D52464BU,       ///< "KFRM": one stored key-frame
-  kPoseGraph = 0x48505247U,      ///< "GRPH": nodes (slot generations) and edges
-  kLoopThreshold = 0x5248544CU,  ///< "LTHR": the adaptive loop threshold's running sums
+  kKeyframe = fourcc('K', 'F', 'R', 'M'),       ///< one stored key-frame
+  kPoseGraph = fourcc('G', 'R', 'P', 'H'),      ///< nodes (slot generations) and edges
+  kLoopThreshold = fourcc('L', 'T', 'H', 'R'),  ///< the adaptive loop threshold's running sums
   // Reserved for a later version: "PLRV", place-recognition vectors (VLAD) per key-frame.
 };
 
