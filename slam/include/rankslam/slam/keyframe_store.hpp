@@ -96,9 +96,9 @@ class AdaptiveLoopThreshold {
   [[nodiscard]] double value() const;
   /// Adds an accepted closure's inlier counts (running sums: no allocation).
   void add(int photometric_inliers, int geometric_inliers);
-  [[nodiscard]] int count() const { return count_; }
+  [[nodiscard]] int count() const { return state_.count; }
 
-  /// The running sums, for saving and restoring (a map file).
+  /// The running sums, saved and restored with the map (map_file.hpp).
   struct State {
     int count = 0;
     double sum_p = 0.0;
@@ -106,23 +106,13 @@ class AdaptiveLoopThreshold {
     double sum_g = 0.0;
     double sum_sq_g = 0.0;
   };
-  [[nodiscard]] State state() const { return {count_, sum_p_, sum_sq_p_, sum_g_, sum_sq_g_}; }
-  void restore(const State& state) {
-    count_ = state.count;
-    sum_p_ = state.sum_p;
-    sum_sq_p_ = state.sum_sq_p;
-    sum_g_ = state.sum_g;
-    sum_sq_g_ = state.sum_sq_g;
-  }
+  [[nodiscard]] const State& state() const { return state_; }
+  void restore(const State& saved) { state_ = saved; }
 
  private:
   double initial_;
   double deviations_;
-  int count_ = 0;
-  double sum_p_ = 0.0;
-  double sum_sq_p_ = 0.0;
-  double sum_g_ = 0.0;
-  double sum_sq_g_ = 0.0;
+  State state_;
 };
 
 }  // namespace rankslam::slam
