@@ -24,6 +24,10 @@ struct ReplayArgs {
   bool decode_ahead = false;
   /// --frame: "camera", "base" or empty (base when the mounting is known), see OutputFrame.
   std::string frame;
+  /// --save-map: where to write the map file at the end (empty: none).
+  std::filesystem::path save_map;
+  /// --load-map: a map file to start in (empty: a new map).
+  std::filesystem::path load_map;
 };
 
 struct SimulateArgs {
@@ -48,6 +52,8 @@ struct RunArgs {
   std::string frame;  ///< as ReplayArgs::frame
   /// --can-interface: wins over the file's can.interface (the systemd unit's instance); empty: the file's.
   std::string can_interface;
+  /// --load-map: a map file to start in (empty: a new map).
+  std::filesystem::path load_map;
 };
 
 struct RecordArgs {

@@ -1,8 +1,13 @@
 #include "frame_pipeline.hpp"
 
+#include "exit_codes.hpp"
+
 #include "rankslam/core/lie.hpp"
 #include "rankslam/core/stopwatch.hpp"
 #include "rankslam/nav/pose_frames.hpp"
+
+#include <exception>
+#include <iostream>
 
 namespace rankslam::app {
 
@@ -102,6 +107,18 @@ slam::FrameResult FramePipeline::process(const hal::RgbdFrame& frame) {
     }
   }
   return result;
+}
+
+int FramePipeline::load_map(const std::filesystem::path& path) {
+  try {
+    const slam::MapFileInfo info = loop_.load_map(path);
+    std::cout << "map loaded from " << path.string() << " (" << info.keyframes << " key-frames, written by "
+              << info.software_version << "); LOST until the camera is found in it" << std::endl;
+    return kExitOk;
+  } catch (const std::exception& error) {
+    std::cerr << "error: " << error.what() << "\n";
+    return kExitInput;
+  }
 }
 
 void FramePipeline::finish() {

@@ -13,6 +13,7 @@
 
 #include <array>
 #include <chrono>
+#include <filesystem>
 #include <cstdint>
 #include <optional>
 #include <vector>
@@ -84,6 +85,9 @@ class FramePipeline {
   void finish();
 
   [[nodiscard]] slam::SlamLoop& loop() { return loop_; }
+  /// Set-up: starts in the map saved in `path` (see slam::SlamLoop::load_map) and says so on
+  /// stdout; kExitOk, or kExitInput after printing why the file was refused.
+  [[nodiscard]] int load_map(const std::filesystem::path& path);
   /// The poses of the frames found in the map: without the frames whose status was kLost and
   /// those a relocalisation withdrew (slam::FrameResult::retracted_frames).
   [[nodiscard]] const eval::Trajectory& trajectory() const { return trajectory_; }

@@ -41,6 +41,8 @@ int main(int argc, char** argv) {
   replay_cmd->add_option("--frame", replay.frame, "Frame of trajectory.txt and map.ply: base (the map frame of the base, x forward, z up; the default when the calibration gives T_base_cam) or camera (the first camera's optical frame)")
       ->check(CLI::IsMember({"camera", "base"}));
   replay_cmd->add_flag("--decode-ahead", replay.decode_ahead, "Decode the next frames while the loop runs: a faster replay, but decoding then competes with the loop for the cores and its timings include that (without it, as on the robot, they do not)");
+  replay_cmd->add_option("--save-map", replay.save_map, "Write the map (key-frames, pose graph; docs/map-format.md) to this file at the end");
+  replay_cmd->add_option("--load-map", replay.load_map, "Start in the map of this file: frames are LOST until one is found in it, poses then in its frame");
   replay_cmd->add_flag("--no-wheels", replay.no_wheels, "Ignore the recording's can.log: vision only (the wheel odometry is otherwise the motion prior and the fallback)");
 
   SimulateArgs simulate;
@@ -67,6 +69,7 @@ int main(int argc, char** argv) {
   run_cmd->add_option("--mode,-m", run.mode, "Registration: baseline, photometric, geometric or fused (default: fused)");
   run_cmd->add_option("--frame", run.frame, "Frame of trajectory.txt and map.ply: base (default: the map frame of the base, x forward, z up) or camera (the first camera's optical frame)")
       ->check(CLI::IsMember({"camera", "base"}));
+  run_cmd->add_option("--load-map", run.load_map, "Start in the map of this file: LOST until the camera is found in it, poses then in its frame");
   run_cmd->add_option("--can-interface", run.can_interface, "SocketCAN interface, instead of the configuration's can.interface (said when they differ)")
       ->check(CLI::Validator(
           [](std::string& text) -> std::string {

@@ -8,6 +8,7 @@
 #include "rankslam/nav/wheel_frame.hpp"
 #include "rankslam/nav/wheel_prior.hpp"
 
+#include "rankslam/core/stopwatch.hpp"
 #include "rankslam/eval/metrics.hpp"
 #include "rankslam/eval/plot.hpp"
 #include "rankslam/eval/run_report.hpp"
@@ -19,6 +20,7 @@
 #include "rankslam/slam/slam_loop.hpp"
 
 #include <algorithm>
+#include <cstdint>
 #include <cstdio>
 #include <iostream>
 #include <optional>
@@ -136,6 +138,9 @@ int run_replay(const ReplayArgs& args) {
   pipeline_options.synchronous_backend = true;
   pipeline_options.frame_log = true;
   FramePipeline pipeline(config, recording.calibration, replayed_wheels ? &*replayed_wheels : nullptr, pipeline_options);
+  if (!args.load_map.empty()) {
+    if (const int code = pipeline.load_map(args.load_map); code != kExitOk) return code;
+  }
   slam::SlamLoop& loop = pipeline.loop();
 
   // Also in the write phase and after it: a signal then is deferred, not fatal.
@@ -359,6 +364,17 @@ int run_replay(const ReplayArgs& args) {
                 coverage.median_position_sigma_m, coverage.median_position_error_m);
   }
   std::printf("outputs in %s\n", args.out.string().c_str());
+  if (!args.save_map.empty()) {
+    const auto save_start = SteadyClock::now();
+    if (const std::string error = loop.save_map(args.save_map); !error.empty()) {
+      report_error(error);
+    } else {
+      std::error_code size_error;
+      std::printf("map saved to %s (%d key-frames, %ju bytes, %.1f ms)\n", args.save_map.string().c_str(),
+                  loop.keyframe_store().size(), static_cast<std::uintmax_t>(fs::file_size(args.save_map, size_error)),
+                  elapsed_ms(save_start));
+    }
+  }
   return exit_code;
 }
 

@@ -188,6 +188,9 @@ int run_live(const RunArgs& args) {
   pipeline_options.max_frames = robot.max_trajectory_poses;
   pipeline_options.recording_clock = replay_camera != nullptr;
   FramePipeline pipeline(slam_config, calibration, wheels.enabled() ? &received_wheels : nullptr, pipeline_options);
+  if (!args.load_map.empty()) {
+    if (const int code = pipeline.load_map(args.load_map); code != kExitOk) return code;
+  }
   slam::SlamLoop& loop = pipeline.loop();
 
   nav::PoseOutputOptions output_options;

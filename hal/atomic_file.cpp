@@ -39,7 +39,22 @@ std::string write_file_atomically(const std::filesystem::path& path, std::span<c
     ::unlink(temp.c_str());
     return error;
   }
+  // The rename is durable only once the directory is: a power cut could otherwise bring back
+  // the previous file.
+  const std::filesystem::path dir = path.has_parent_path() ? path.parent_path() : std::filesystem::path(".");
+  if (std::string error = sync_directory(dir); !error.empty()) {
+    return "cannot flush the directory of " + path.string() + ": " + error;
+  }
   return {};
+}
+
+std::string sync_directory(const std::filesystem::path& dir) {
+  const int fd = ::open(dir.c_str(), O_RDONLY | O_DIRECTORY | O_CLOEXEC);
+  if (fd < 0) return std::strerror(errno);
+  const int result = ::fsync(fd);
+  const std::string error = result != 0 ? std::strerror(errno) : std::string();
+  ::close(fd);
+  return error;
 }
 
 std::string write_file_atomically(const std::filesystem::path& path, std::string_view text) {

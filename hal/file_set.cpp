@@ -1,4 +1,5 @@
 #include "rankslam/hal/file_set.hpp"
+#include "rankslam/hal/atomic_file.hpp"
 
 #include <fcntl.h>
 #include <signal.h>
@@ -107,15 +108,6 @@ std::string write_synced(const fs::path& path, std::span<const char> bytes) {
   }
   if (::close(fd) != 0) return errno_text();
   return {};
-}
-
-std::string sync_directory(const fs::path& dir) {
-  const int fd = ::open(dir.c_str(), O_RDONLY | O_DIRECTORY | O_CLOEXEC);
-  if (fd < 0) return errno_text();
-  const int result = ::fsync(fd);
-  const std::string error = result != 0 ? errno_text() : std::string();
-  ::close(fd);
-  return error;
 }
 
 /// Points `link` at `target` with one rename(2): readers see the old target or the new one.

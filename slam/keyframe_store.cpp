@@ -105,21 +105,21 @@ void KeyframeStore::copy_features(const geometry::GeometricFeatures& from, geome
 }
 
 double AdaptiveLoopThreshold::value() const {
-  if (count_ < 2) return initial_;
-  const double n = count_;
-  const double mean_p = sum_p_ / n;
-  const double mean_g = sum_g_ / n;
-  const double sigma_p = std::sqrt(std::max(0.0, sum_sq_p_ / n - mean_p * mean_p));
-  const double sigma_g = std::sqrt(std::max(0.0, sum_sq_g_ / n - mean_g * mean_g));
+  if (state_.count < 2) return initial_;
+  const double n = state_.count;
+  const double mean_p = state_.sum_p / n;
+  const double mean_g = state_.sum_g / n;
+  const double sigma_p = std::sqrt(std::max(0.0, state_.sum_sq_p / n - mean_p * mean_p));
+  const double sigma_g = std::sqrt(std::max(0.0, state_.sum_sq_g / n - mean_g * mean_g));
   return (mean_p - deviations_ * sigma_p) + (mean_g - deviations_ * sigma_g);
 }
 
 void AdaptiveLoopThreshold::add(int photometric_inliers, int geometric_inliers) {
-  ++count_;
-  sum_p_ += photometric_inliers;
-  sum_sq_p_ += static_cast<double>(photometric_inliers) * photometric_inliers;
-  sum_g_ += geometric_inliers;
-  sum_sq_g_ += static_cast<double>(geometric_inliers) * geometric_inliers;
+  ++state_.count;
+  state_.sum_p += photometric_inliers;
+  state_.sum_sq_p += static_cast<double>(photometric_inliers) * photometric_inliers;
+  state_.sum_g += geometric_inliers;
+  state_.sum_sq_g += static_cast<double>(geometric_inliers) * geometric_inliers;
 }
 
 }  // namespace rankslam::slam

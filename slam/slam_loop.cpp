@@ -28,7 +28,8 @@ SlamLoop::SlamLoop(const SlamConfig& config, const hal::Calibration& calibration
       keyframe_store_(make_keyframe_store(config_)),
       backend_(config_, calibration.rgb.T_base_cam, calibration.wheels.has_value()),
       loop_closer_(config_, keyframe_store_, registrar_, geometric_, backend_),
-      relocaliser_(config_, keyframe_store_, registrar_) {
+      relocaliser_(config_, keyframe_store_, registrar_),
+      map_digests_{calibration_digest(calibration), config_digest(config_)} {
   images_.warm_up();
   if (const std::string error = team_.start(config_.threads); !error.empty()) {
     throw std::invalid_argument("slam.threads: " + error);
@@ -240,6 +241,27 @@ void SlamLoop::finish() {
   // The live map already sits on the only poses there are unless they moved or some were retired.
   if (loop_closer_.closures() == 0 && !rebuild_map_) return;
   map_.rebuild(keyframe_store_);
+}
+
+std::string SlamLoop::save_map(const std::filesystem::path& path) const {
+  return save_map_file(path, keyframe_store_, backend_.graph(), loop_closer_.adaptive_threshold(), map_digests_);
+}
+
+MapFileInfo SlamLoop::load_map(const std::filesystem::path& path) {
+  const MapFileInfo info = load_map_file(
+      path, map_digests_, {keyframe_store_, backend_.graph_to_restore(), loop_closer_.adaptive_threshold()});
+  keyframe_sequence_ = 0;
+  path_m_ = 0.0;
+  for (int i = 0; i < keyframe_store_.capacity(); ++i) {
+    const StoredKeyframe& keyframe = keyframe_store_.slot(i);
+    if (!keyframe.used || keyframe.sequence < keyframe_sequence_) continue;
+    keyframe_sequence_ = keyframe.sequence;
+    path_m_ = keyframe.path_m;
+  }
+  map_.rebuild(keyframe_store_);
+  // Poses are in the loaded map's frame from the first frame found in it.
+  if (keyframe_store_.size() > 0) search_loaded_map();
+  return info;
 }
 
 }  // namespace rankslam::slam

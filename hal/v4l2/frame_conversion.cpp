@@ -7,15 +7,6 @@
 
 namespace rankslam::v4l2 {
 
-std::string fourcc_to_string(std::uint32_t code) {
-  std::string text(4, '?');
-  for (std::size_t i = 0; i < 4; ++i) {
-    const auto byte = static_cast<char>((code >> (8U * i)) & 0xFFU);
-    if (byte >= 0x20 && byte < 0x7F) text[i] = byte;
-  }
-  return text;
-}
-
 bool yuyv_to_bgr(const std::uint8_t* data, std::size_t bytes_used, int width, int height,
                  std::size_t bytes_per_line, cv::Mat& bgr) {
   if (data == nullptr || width <= 0 || height <= 0 || width % 2 != 0) return false;

@@ -306,6 +306,24 @@ std::uint32_t PoseGraph::generation(int id) const {
   return generation_[static_cast<std::size_t>(id)];
 }
 
+std::uint64_t PoseGraph::added_order(int id) const {
+  return contains(id) ? added_order_[static_cast<std::size_t>(id)] : 0;
+}
+
+bool PoseGraph::restore_slot(int id, std::uint32_t generation, bool node, std::uint64_t added_order,
+                             const Eigen::Isometry3d& T_world_node) {
+  if (!configured() || id < 0 || id >= capacity_.max_nodes || contains(id)) return false;
+  const auto slot = static_cast<std::size_t>(id);
+  if (node && (!lie::is_finite_rigid(T_world_node) || added_order >= next_added_order_)) return false;
+  generation_[slot] = generation;
+  if (!node) return true;
+  active_[slot] = 1;
+  added_order_[slot] = added_order;
+  T_world_node_[slot] = T_world_node;
+  ++node_count_;
+  return true;
+}
+
 const Edge& PoseGraph::edge(int index) const {
   static const Edge kNoEdge{};
   if (index < 0 || index >= edge_count_) return kNoEdge;

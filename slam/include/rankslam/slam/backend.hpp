@@ -66,6 +66,13 @@ class Backend {
   [[nodiscard]] bool optimized_pose(int keyframe_node, std::uint32_t keyframe_generation,
                                     const Eigen::Isometry3d& T_keyframe_cam, Eigen::Isometry3d& T_world_cam) const;
 
+  /// The graph, saved with the map; set-up alone restores it (a map file), with nothing pending.
+  [[nodiscard]] const graph::PoseGraph& graph() const { return graph_; }
+  [[nodiscard]] graph::PoseGraph& graph_to_restore() {
+    pending_ = false;
+    return graph_;
+  }
+
   /// Pose-graph information of a registration from its inlier count and noise scale.
   [[nodiscard]] Eigen::Matrix<double, 6, 6> registration_information(int inliers, double noise_scale) const;
   /// Information added to every sequential registration so that a direction the surfaces leave

@@ -96,16 +96,23 @@ class AdaptiveLoopThreshold {
   [[nodiscard]] double value() const;
   /// Adds an accepted closure's inlier counts (running sums: no allocation).
   void add(int photometric_inliers, int geometric_inliers);
-  [[nodiscard]] int count() const { return count_; }
+  [[nodiscard]] int count() const { return state_.count; }
+
+  /// The running sums, saved and restored with the map (map_file.hpp).
+  struct State {
+    int count = 0;
+    double sum_p = 0.0;
+    double sum_sq_p = 0.0;
+    double sum_g = 0.0;
+    double sum_sq_g = 0.0;
+  };
+  [[nodiscard]] const State& state() const { return state_; }
+  void restore(const State& saved) { state_ = saved; }
 
  private:
   double initial_;
   double deviations_;
-  int count_ = 0;
-  double sum_p_ = 0.0;
-  double sum_sq_p_ = 0.0;
-  double sum_g_ = 0.0;
-  double sum_sq_g_ = 0.0;
+  State state_;
 };
 
 }  // namespace rankslam::slam

@@ -37,6 +37,9 @@ class LoopCloser {
   /// The index-th accepted closure, or null once it has left the log (see SlamLoop::loop_closure).
   [[nodiscard]] const LoopClosure* closure(int index) const;
   [[nodiscard]] double threshold() const { return threshold_.value(); }
+  /// The adaptive threshold's state, saved and restored with the map.
+  [[nodiscard]] AdaptiveLoopThreshold& adaptive_threshold() { return threshold_; }
+  [[nodiscard]] const AdaptiveLoopThreshold& adaptive_threshold() const { return threshold_; }
 
   static constexpr int kClosureLogMinCapacity = 64;
 

@@ -14,6 +14,7 @@
 #include "rankslam/slam/loop_closer.hpp"
 #include "rankslam/slam/relocaliser.hpp"
 #include "rankslam/slam/map_builder.hpp"
+#include "rankslam/slam/map_file.hpp"
 #include "rankslam/slam/point_map.hpp"
 #include "rankslam/slam/registrar.hpp"
 #include "rankslam/slam/tracker.hpp"
@@ -21,7 +22,9 @@
 #include <Eigen/Geometry>
 
 #include <cstdint>
+#include <filesystem>
 #include <memory>
+#include <string>
 
 namespace rankslam::slam {
 
@@ -81,6 +84,18 @@ class SlamLoop {
   }
   [[nodiscard]] const SlamConfig& config() const { return config_; }
 
+  /// Writes the back-end's map — stored key-frames, pose graph, loop threshold (map_file.hpp) —
+  /// to `path` atomically; between frames or after finish(). Empty on success, else a message
+  /// naming the file.
+  [[nodiscard]] std::string save_map(const std::filesystem::path& path) const;
+  /// Set-up, before the first frame: replaces the back-end's map with the one saved in `path`
+  /// and rebuilds the point map from it; new key-frames continue its sequence and path. Frames
+  /// are kLost until one is found in it (search_loaded_map). Throws std::runtime_error naming the file and the fault, the
+  /// map then empty.
+  MapFileInfo load_map(const std::filesystem::path& path);
+  [[nodiscard]] const KeyframeStore& keyframe_store() const { return keyframe_store_; }
+  [[nodiscard]] const graph::PoseGraph& pose_graph() const { return backend_.graph(); }
+
  private:
   /// The key-frame part of a frame: a frame far enough from the latest key-frame becomes one;
   /// then the loop search, the back-end and the frame's link to its key-frame.
@@ -135,6 +150,8 @@ class SlamLoop {
   std::int64_t keyframe_sequence_ = 0;
   double path_m_ = 0.0;
   int retired_keyframes_ = 0;
+  /// The calibration and configuration a saved map is tied to.
+  MapDigests map_digests_;
 };
 
 }  // namespace rankslam::slam

@@ -1,5 +1,7 @@
 #pragma once
 
+#include "rankslam/core/fourcc.hpp"
+
 #include <opencv2/core/mat.hpp>
 
 #include <cstddef>
@@ -7,17 +9,6 @@
 #include <string>
 
 namespace rankslam::v4l2 {
-
-/// Builds a V4L2 four-character code, e.g. fourcc('Y', 'U', 'Y', 'V').
-constexpr std::uint32_t fourcc(char a, char b, char c, char d) {
-  return static_cast<std::uint32_t>(static_cast<unsigned char>(a)) |
-         (static_cast<std::uint32_t>(static_cast<unsigned char>(b)) << 8U) |
-         (static_cast<std::uint32_t>(static_cast<unsigned char>(c)) << 16U) |
-         (static_cast<std::uint32_t>(static_cast<unsigned char>(d)) << 24U);
-}
-
-/// A four-character code as text ("YUYV"); non-printable bytes become '?'.
-[[nodiscard]] std::string fourcc_to_string(std::uint32_t code);
 
 /// Converts one packed YUYV 4:2:2 image (Y0 U Y1 V per pixel pair, rows `bytes_per_line`
 /// apart) to BGR in `bgr`, which is reused when it already is width x height CV_8UC3. False,

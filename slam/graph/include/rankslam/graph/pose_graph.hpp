@@ -151,6 +151,19 @@ class PoseGraph {
   /// Edge number index in [0, edge_count()); indices change when edges are removed.
   [[nodiscard]] const Edge& edge(int index) const;
 
+  /// Saving and restoring a graph (a map file): the add_node() call number of node id (0 when id
+  /// is not a node) and that of the next add_node(); they order a removed node's neighbours.
+  [[nodiscard]] std::uint64_t added_order(int id) const;
+  [[nodiscard]] std::uint64_t next_added_order() const { return next_added_order_; }
+  /// Set-up, restoring a saved graph into an emptied one (configure()): first
+  /// restore_next_added_order(), then each slot's generation and, when `node`, a node there at
+  /// `T_world_node` that was the `added_order`-th added, then set_fixed() and add_edge(). False
+  /// when id is out of range or already a node, the pose is not a finite rigid transform or the
+  /// order is not below the next one.
+  void restore_next_added_order(std::uint64_t next) { next_added_order_ = next; }
+  [[nodiscard]] bool restore_slot(int id, std::uint32_t generation, bool node, std::uint64_t added_order,
+                                  const Eigen::Isometry3d& T_world_node);
+
   /// Copies another graph into this one's preallocated buffers (no allocation): node ids,
   /// generations, edges and the fixed node are kept. False (and this graph unchanged) when this
   /// graph is not configured or either of the other's capacities exceeds this one's.
