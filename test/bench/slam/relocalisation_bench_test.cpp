@@ -112,6 +112,50 @@ TEST(RelocalisationBench, KidnappedOnFr1RpyHeadFoundWithinThirtyFramesOverSeeds)
   }
 }
 
+TEST(RelocalisationBench, AMapOfTheFirst120FramesFindsTheRestStartedCold) {
+  if (!fs::is_directory(tum("fr1_rpy_head"))) GTEST_SKIP() << "no shared data at " << tum("fr1_rpy_head");
+  replay::Recording recording;
+  std::vector<hal::RgbdFrame> frames = read_frames(tum("fr1_rpy_head"), 0, 180, recording);
+  ASSERT_EQ(frames.size(), 180u);
+  auto ground_truth = eval::read_tum_trajectory(*recording.ground_truth);
+  ASSERT_TRUE(ground_truth) << ground_truth.error();
+  const fs::path map = fs::temp_directory_path() / ("rankslam_bench_map_" + std::to_string(::getpid()) + ".map");
+  std::vector<hal::RgbdFrame> head;
+  std::vector<hal::RgbdFrame> rest;
+  for (std::size_t i = 0; i < frames.size(); ++i) (i < 120 ? head : rest).push_back(std::move(frames[i]));
+  eval::Trajectory first;
+  {
+    SlamLoop loop(SlamConfig{}, recording.calibration);
+    loop.set_synchronous_backend(true);
+    for (const hal::RgbdFrame& frame : head) first.push_back({frame.stamp_s, loop.process(frame).T_world_cam});
+    loop.finish();
+    ASSERT_EQ(loop.save_map(map), "");
+  }
+  SlamLoop loop(SlamConfig{}, recording.calibration);
+  loop.set_synchronous_backend(true);
+  (void)loop.load_map(map);
+  fs::remove(map);
+  int lost = 0;
+  std::vector<eval::RelocalisationRecord> found;
+  for (std::size_t i = 0; i < rest.size() && found.empty(); ++i) {
+    const FrameResult result = loop.process(rest[i]);
+    if (result.status == FrameStatus::kLost) ++lost;
+    if (result.relocalised) found.push_back({i, rest[i].stamp_s, result.T_world_cam, result.retracted_frames});
+  }
+  ASSERT_FALSE(found.empty()) << "frames 120-179 were not found in the map";
+  // In the first run's frame: its own alignment to the ground truth.
+  auto ate = eval::compute_ate(ground_truth.value(), first);
+  ASSERT_TRUE(ate) << ate.error();
+  const std::vector<eval::RelocalisationError> errors =
+      eval::relocalisation_errors(ground_truth.value(), ate.value(), found, 0.02);
+  std::printf("frame %llu of the rest found after %d lost, %.4f m from the ground truth in the map's frame\n",
+              static_cast<unsigned long long>(found.front().frame) + 120, lost, errors.front().translation_m);
+  EXPECT_EQ(lost, static_cast<int>(found.front().frame));  // LOST until found
+  EXPECT_LT(found.front().frame, 30u);
+  ASSERT_TRUE(errors.front().has_ground_truth);
+  EXPECT_LE(errors.front().translation_m, 0.05);
+}
+
 TEST(RelocalisationBench, AnotherSequenceOfTheRoomIsFoundWhereTheMotionCaptureIsInRpyHeadsMap) {
   if (!fs::is_directory(tum("fr1_rpy_head")) || !fs::is_directory(tum("fr1_desk_9"))) {
     GTEST_SKIP() << "no shared data at " << tum("fr1_rpy_head") << " and " << tum("fr1_desk_9");
