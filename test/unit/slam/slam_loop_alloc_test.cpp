@@ -320,6 +320,42 @@ TEST_F(SlamLoopAllocations, FusedSteadyStateAllocatesNothing) {
                                           recording_->calibration);
 }
 
+// A kidnapped camera: every 90 frames the office's motion jumps half a period ahead, so tracking
+// fails and the search of the store (docs/methods.md §13) finds the place again, allocating
+// nothing on the tracking thread.
+TEST_F(SlamLoopAllocations, RelocalisationAfterJumpsAllocatesNothing) {
+  ASSERT_TRUE(error_->empty()) << *error_;
+  SlamLoop loop(config_for(Mode::kFused), recording_->calibration);
+  loop.set_synchronous_backend(false);
+  hal::RgbdFrame frame;
+  auto frame_at = [&](int index, int jumps) -> const hal::RgbdFrame& {
+    frame = (*frames_)[static_cast<std::size_t>((index + jumps * kLoopFrames / 2) % kLoopFrames)];
+    frame.sequence = static_cast<std::uint32_t>(index);
+    frame.stamp_s = index * kFrameInterval_s;
+    frame.stamp_ns = static_cast<std::int64_t>(index) * 33'333'333;
+    return frame;
+  };
+  for (int i = 0; i < kWarmUpFrames; ++i) (void)loop.process(frame_at(i, 0));
+  constexpr int kCounted = 450;
+  constexpr int kJumpEvery = 90;
+  long allocations = 0;
+  int relocalised = 0;
+  int searching = 0;
+  {
+    const CountAllocations count;
+    for (int i = kWarmUpFrames; i < kWarmUpFrames + kCounted; ++i) {
+      const FrameResult result = loop.process(frame_at(i, (i - kWarmUpFrames) / kJumpEvery));
+      relocalised += result.relocalised ? 1 : 0;
+      searching += result.relocalisation_candidates > 0 ? 1 : 0;
+    }
+    allocations = count.this_thread_allocations();
+  }
+  std::printf("fused, %d frames with a jump every %d: %d searching, %d relocalised, %ld allocations\n", kCounted,
+              kJumpEvery, searching, relocalised, allocations);
+  EXPECT_EQ(allocations, 0);
+  EXPECT_GT(relocalised, 0);  // the counted frames took the relocalisation path
+}
+
 // All of a key-frame's candidates in its own frame (loop_candidates_per_frame 0) against one per
 // frame: the same candidates are registered either way, and closures found.
 TEST_F(SlamLoopAllocations, LoopCandidatesAreRegisteredOnePerFrameOrAllAtTheKeyframe) {
