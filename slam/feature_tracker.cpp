@@ -192,6 +192,7 @@ const FeatureTracker::TrackedFrame* FeatureTracker::register_current(const hal::
         target = &reference;
         accepted_information_ = estimate.information;
         motion_.set_resumed(resuming);
+        result.resumed = resuming;
         // Overlap relative to the inliers the reference had with the first frame registered
         // against it: that count is what full overlap looks like for this scene and image kind.
         // A fraction of the reference's features would depend on how matchable the features

@@ -58,6 +58,7 @@ void SlamLoop::search_loaded_map() {
   in_map_ = false;
   searching_ = true;
   searched_frames_ = 0;
+  tracked_while_searching_ = 0;
   search_start_sequence_ = keyframe_sequence_;
   relocaliser_.reset();
 }
@@ -73,12 +74,20 @@ void SlamLoop::relocalise(FrameResult& result) {
     }
     searching_ = true;
     searched_frames_ = 0;
+    tracked_while_searching_ = 0;
     search_start_sequence_ = keyframe_sequence_;
     relocaliser_.reset();
+  }
+  if (in_map_ && result.resumed) {
+    searching_ = false;  // back on the reference from before the failure, which is in the map
+    return;
   }
   // Outside the map's frame the pose tracking gives is not the map's.
   if (!in_map_) result.status = FrameStatus::kLost;
   ++searched_frames_;
+  // Frames tracked since the last failure of the search: from a pose the map did not give.
+  const int tracked_before = tracked_while_searching_;
+  tracked_while_searching_ = result.status == FrameStatus::kTracking ? tracked_while_searching_ + 1 : 0;
   Relocalisation found;
   if (!relocaliser_.search(tracker_->features(), loop_closer_.threshold(), result, found)) {
     // Tracking that went on after the failure without being found again within one sweep of the
@@ -104,10 +113,11 @@ void SlamLoop::relocalise(FrameResult& result) {
       return;
     }
   }
-  if (in_map_) {
-    // Tracking since the failure was not where the map is (a kidnapped robot, or failed frames):
-    // its poses are withdrawn and the key-frames it made retired.
-    result.retracted_frames = searched_frames_ - 1 + (config_.relocalisation.after_failed_frames - 1);
+  if (in_map_ && result.status == FrameStatus::kTracking) {
+    // Tracking since the failure went on elsewhere than the map is (a kidnapped robot): its poses
+    // are withdrawn and the key-frames it made retired. Failed frames keep their extrapolated
+    // poses, reported as failed.
+    result.retracted_frames = tracked_before;
     for (int slot = 0; slot < keyframe_store_.capacity(); ++slot) {
       const StoredKeyframe& keyframe = keyframe_store_.slot(slot);
       if (!keyframe.used || keyframe.sequence <= search_start_sequence_) continue;

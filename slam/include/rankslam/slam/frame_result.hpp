@@ -68,6 +68,9 @@ struct FrameResult {
   bool icp_refined = false;
   /// The frame became the tracking key-frame the following frames register against.
   bool new_reference = false;
+  /// After failed frames, the frame registered against the reference held since before them:
+  /// tracking is back where it was, in the map.
+  bool resumed = false;
   /// The frame was added to the map as a key-frame.
   bool keyframe = false;
   /// The frame's key-frame (the latest stored at or before it): its pose-graph node and the node's

@@ -137,6 +137,7 @@ class SlamLoop {
   /// tracking gives are not in the map's frame (a loaded map not found yet).
   bool searching_ = false;
   int searched_frames_ = 0;
+  int tracked_while_searching_ = 0;
   /// The newest key-frame when the search started: later ones were made by tracking since.
   std::int64_t search_start_sequence_ = 0;
   /// Key-frames were retired after a relocalisation: the map is rebuilt at the end.
