@@ -118,10 +118,7 @@ void LoopCloser::try_candidate(StoredKeyframe& stored, FrameResult& result) {
   // Pose consistency: a true closure corrects the drift accumulated since the candidate, no more.
   const double travelled_m = current.path_m - stored.path_m;
   const Eigen::Isometry3d correction = predicted.inverse() * T_stored_current;
-  if (correction.translation().norm() > config_.loop.max_correction_m + config_.loop.drift_per_m * travelled_m ||
-      lie::rotation_deg(correction) > config_.loop.max_correction_deg + config_.loop.drift_deg_per_m * travelled_m) {
-    return;
-  }
+  if (!config_.loop.within_drift(correction.translation().norm(), lie::rotation_deg(correction), travelled_m)) return;
   // Inlier geometry: the matches that fit must spread in two directions at least; matches on a
   // line or in one small patch fit a wrong motion as well as the right one.
   const std::span<const Eigen::Vector3f> source_points = registrar_.source_points();

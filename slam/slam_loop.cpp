@@ -56,6 +56,10 @@ FrameResult SlamLoop::process(const hal::RgbdFrame& frame, const nav::MotionPrio
 
 void SlamLoop::search_loaded_map() {
   in_map_ = false;
+  start_search();
+}
+
+void SlamLoop::start_search() {
   searching_ = true;
   searched_frames_ = 0;
   tracked_while_searching_ = 0;
@@ -72,11 +76,7 @@ void SlamLoop::relocalise(FrameResult& result) {
         keyframe_store_.size() == 0) {
       return;
     }
-    searching_ = true;
-    searched_frames_ = 0;
-    tracked_while_searching_ = 0;
-    search_start_sequence_ = keyframe_sequence_;
-    relocaliser_.reset();
+    start_search();
   }
   if (in_map_ && result.resumed) {
     searching_ = false;  // back on the reference from before the failure, which is in the map
@@ -104,19 +104,13 @@ void SlamLoop::relocalise(FrameResult& result) {
   if (in_map_ && result.status == FrameStatus::kTracking) {
     // Tracking went on after the failure: where the place found agrees with it within the drift
     // a loop closure may correct, tracking was right (the loop closure is the back-end's).
-    const StoredKeyframe& keyframe = keyframe_store_.slot(found.slot);
-    const double travelled_m =
-        path_m_ + (T_world_last_keyframe_.inverse() * result.T_world_cam).translation().norm() - keyframe.path_m;
+    const double travelled_m = path_m_ + (T_world_last_keyframe_.inverse() * result.T_world_cam).translation().norm() -
+                               keyframe_store_.slot(found.slot).path_m;
     const Eigen::Isometry3d difference = result.T_world_cam.inverse() * found.T_world_cam;
-    if (difference.translation().norm() <= config_.loop.max_correction_m + config_.loop.drift_per_m * travelled_m &&
-        lie::rotation_deg(difference) <= config_.loop.max_correction_deg + config_.loop.drift_deg_per_m * travelled_m) {
-      return;
-    }
-  }
-  if (in_map_ && result.status == FrameStatus::kTracking) {
-    // Tracking since the failure went on elsewhere than the map is (a kidnapped robot): its poses
-    // are withdrawn and the key-frames it made retired. Failed frames keep their extrapolated
-    // poses, reported as failed.
+    if (config_.loop.within_drift(difference.translation().norm(), lie::rotation_deg(difference), travelled_m)) return;
+    // Otherwise tracking went on elsewhere than the map is (a kidnapped robot): its poses since
+    // the failure are withdrawn and the key-frames it made retired. Failed frames keep their
+    // extrapolated poses, reported as failed.
     result.retracted_frames = tracked_before;
     for (int slot = 0; slot < keyframe_store_.capacity(); ++slot) {
       const StoredKeyframe& keyframe = keyframe_store_.slot(slot);

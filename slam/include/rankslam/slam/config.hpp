@@ -133,6 +133,13 @@ struct LoopConfig {
   // the feature estimate: a blank wall or the floor alone fixes too little (docs/results.md §5).
   double icp_min_information_ratio = 0.1;
 
+  /// Whether a correction of a pose `travelled_m` along the path from its reference is within the
+  /// drift a loop closure may correct: max_correction_* plus drift_* per metre.
+  [[nodiscard]] bool within_drift(double translation_m, double rotation_deg, double travelled_m) const {
+    return translation_m <= max_correction_m + drift_per_m * travelled_m &&
+           rotation_deg <= max_correction_deg + drift_deg_per_m * travelled_m;
+  }
+
   template <typename Visitor>
   void visit_parameters(Visitor&& visit) {
     visit("loop_min_keyframe_gap", min_keyframe_gap, 1, 10000, "",

@@ -111,6 +111,8 @@ class SlamLoop {
   /// key-frames. A place found where tracking went on elsewhere (a kidnapped robot) or failed
   /// moves the pose there; in a loaded map not yet found the status is kLost.
   void relocalise(FrameResult& result);
+  /// Starts a search of the store afresh.
+  void start_search();
   /// Moves every pose the tracking holds by a world-frame correction.
   void correct_tracking(const Eigen::Isometry3d& correction);
 
