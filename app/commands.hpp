@@ -52,8 +52,10 @@ struct RunArgs {
   std::string frame;  ///< as ReplayArgs::frame
   /// --can-interface: wins over the file's can.interface (the systemd unit's instance); empty: the file's.
   std::string can_interface;
-  /// --load-map: a map file to start in (empty: a new map).
+  /// --load-map: a map file to start in (empty: map.file when it exists, else a new map).
   std::filesystem::path load_map;
+  /// --save-map: where checkpoints and the exit write the map (empty: map.file, or nowhere).
+  std::filesystem::path save_map;
 };
 
 struct RecordArgs {

@@ -85,6 +85,7 @@ class FramePipeline {
   void finish();
 
   [[nodiscard]] slam::SlamLoop& loop() { return loop_; }
+  [[nodiscard]] const slam::SlamLoop& loop() const { return loop_; }
   /// Set-up: starts in the map saved in `path` (see slam::SlamLoop::load_map) and says so on
   /// stdout; kExitOk, or kExitInput after printing why the file was refused.
   [[nodiscard]] int load_map(const std::filesystem::path& path);

@@ -87,6 +87,7 @@ bool run_live_loop(const LiveLoopParts& parts, const std::function<bool()>& stop
     const Eigen::Isometry3d correction = T_base_cam * result.map_correction * T_cam_base;
     mailbox.post(sample, result.graph_applied ? &correction : nullptr,
                  parts.wheels ? std::optional<std::int64_t>(pipeline.wheel_stamp_ns(frame)) : std::nullopt);
+    if (parts.checkpointer != nullptr) (void)parts.checkpointer->offer(pipeline);
   }
   if (parts.notifier != nullptr) parts.notifier->stopping();
   return interrupted;

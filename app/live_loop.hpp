@@ -1,5 +1,6 @@
 #pragma once
 
+#include "checkpointer.hpp"
 #include "frame_pipeline.hpp"
 #include "status_line.hpp"
 
@@ -36,6 +37,8 @@ struct LiveLoopParts {
   /// Optional: the service manager (READY=1, WATCHDOG=1 per turn, STOPPING=1) and the journal.
   systemd::ServiceNotifier* notifier = nullptr;
   StatusLine* status_line = nullptr;
+  /// Optional: offered every processed frame (map.checkpoint_s).
+  Checkpointer* checkpointer = nullptr;
 };
 
 /// Camera → SLAM loop → pose mailbox until `stop()` returns true or the recording has ended

@@ -69,7 +69,8 @@ int main(int argc, char** argv) {
   run_cmd->add_option("--mode,-m", run.mode, "Registration: baseline, photometric, geometric or fused (default: fused)");
   run_cmd->add_option("--frame", run.frame, "Frame of trajectory.txt and map.ply: base (default: the map frame of the base, x forward, z up) or camera (the first camera's optical frame)")
       ->check(CLI::IsMember({"camera", "base"}));
-  run_cmd->add_option("--load-map", run.load_map, "Start in the map of this file: LOST until the camera is found in it, poses then in its frame");
+  run_cmd->add_option("--load-map", run.load_map, "Start in the map of this file: LOST until the camera is found in it, poses then in its frame (default: map.file when it exists)");
+  run_cmd->add_option("--save-map", run.save_map, "Write the map to this file at every checkpoint and at exit (default: map.file)");
   run_cmd->add_option("--can-interface", run.can_interface, "SocketCAN interface, instead of the configuration's can.interface (said when they differ)")
       ->check(CLI::Validator(
           [](std::string& text) -> std::string {

@@ -23,6 +23,7 @@ const std::map<std::string, std::set<std::string>> kKeys = {
     {"can", {"interface", "play_wheel_frames"}},
     {"output", {"pose_rate_hz", "heartbeat_rate_hz", "watchdog_timeout_s", "lost_after_failed_frames", "wheel_propagation", "dir",
                 "max_trajectory_poses", "realtime_priority", "status_interval_s"}},
+    {"map", {"file", "checkpoint_s"}},
 };
 
 // A string or boolean.
@@ -148,6 +149,17 @@ std::string load_robot_config(const std::filesystem::path& path, RobotConfig& co
     // Up to a day; 0 turns the line off.
     check(read_number(output, "output", "status_interval_s", 0.0, 86400.0, config.status_interval_s));
   }
+  const YAML::Node map = root["map"];
+  if (map) {
+    std::string file_name;
+    check(read(map, "map", "file", file_name));
+    if (!file_name.empty()) {
+      config.map_file = file_name;
+      if (config.map_file.is_relative()) config.map_file = path.parent_path() / config.map_file;
+    }
+    // Up to a day; 0 = only at the end.
+    check(read_number(map, "map", "checkpoint_s", 0.0, 86400.0, config.checkpoint_s));
+  }
   if (!error.empty()) return error;
   if (auto range = nav::validate(config.output); !range.empty()) return file + "output." + range;
   return {};
@@ -175,7 +187,9 @@ std::string describe_robot_config(const RobotConfig& config) {
        << "output.dir = " << config.output_dir.string() << "\n"
        << "output.max_trajectory_poses = " << config.max_trajectory_poses << "\n"
        << "output.realtime_priority = " << config.output_realtime_priority << "  # SCHED_FIFO, 0 = ordinary scheduling\n"
-       << "output.status_interval_s = " << config.status_interval_s << " s  # status line on stderr, 0 = none\n";
+       << "output.status_interval_s = " << config.status_interval_s << " s  # status line on stderr, 0 = none\n"
+       << "map.file = " << config.map_file.string() << "  # loaded at start when it exists, saved at checkpoints and at exit\n"
+       << "map.checkpoint_s = " << config.checkpoint_s << " s  # map and outputs written this often, 0 = at exit only\n";
   return text.str();
 }
 

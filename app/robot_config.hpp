@@ -63,9 +63,15 @@ struct RobotConfig {
   /// output.status_interval_s: a status line on stderr (the journal) this often while `run`
   /// works; 0 = none.
   double status_interval_s = 60.0;
+  /// map.file: the map `run` starts in when the file exists (as with --load-map) and saves at
+  /// every checkpoint and at exit (as with --save-map); empty = none. Relative to the YAML file.
+  std::filesystem::path map_file;
+  /// map.checkpoint_s: the map file and the outputs (trajectory, point map, report) are written
+  /// this often, off the loop's thread; 0 = only at exit.
+  double checkpoint_s = 30.0;
 };
 
-/// The top-level sections load_robot_config reads (robot, camera, can, output); the file's
+/// The top-level sections load_robot_config reads (robot, camera, can, output, map); the file's
 /// `slam:`, `geometry:` and `wheel_odometry:` are load_pipeline_config's.
 [[nodiscard]] const std::set<std::string>& robot_config_sections();
 

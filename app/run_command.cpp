@@ -1,5 +1,6 @@
 // `rankslam run`: live operation. Builds the drivers the robot configuration names, connects
 // camera → SLAM loop → pose frames on CAN, and flushes trajectory and map on exit.
+#include "checkpointer.hpp"
 #include "commands.hpp"
 #include "config_file.hpp"
 #include "exit_codes.hpp"
@@ -188,10 +189,39 @@ int run_live(const RunArgs& args) {
   pipeline_options.max_frames = robot.max_trajectory_poses;
   pipeline_options.recording_clock = replay_camera != nullptr;
   FramePipeline pipeline(slam_config, calibration, wheels.enabled() ? &received_wheels : nullptr, pipeline_options);
-  if (!args.load_map.empty()) {
-    if (const int code = pipeline.load_map(args.load_map); code != kExitOk) return code;
+  // map.file: yesterday's map when there is one, and where this run's is saved.
+  fs::path load_path = args.load_map;
+  const fs::path save_path = args.save_map.empty() ? robot.map_file : args.save_map;
+  if (load_path.empty() && !robot.map_file.empty()) {
+    std::error_code exists_error;
+    if (fs::exists(robot.map_file, exists_error)) {
+      load_path = robot.map_file;
+    } else {
+      std::cout << "map.file " << robot.map_file.string() << " does not exist yet: a new map" << std::endl;
+    }
+  }
+  if (!load_path.empty()) {
+    if (const int code = pipeline.load_map(load_path); code != kExitOk) return code;
+  }
+  if (!save_path.empty()) {
+    const fs::path dir = save_path.has_parent_path() ? save_path.parent_path() : fs::path(".");
+    if (std::error_code dir_error; !fs::is_directory(dir, dir_error)) {
+      std::cerr << "error: the map is to be saved to " << save_path.string() << ", but " << dir.string()
+                << " is not a directory\n";
+      return kExitOutput;
+    }
   }
   slam::SlamLoop& loop = pipeline.loop();
+  // Checkpoints: the map file and the outputs so far, written by the checkpointer's thread from
+  // its copies.
+  std::optional<CheckpointWriter> checkpoint_writer;
+  std::optional<Checkpointer> checkpointer;
+  if (robot.checkpoint_s > 0.0) {
+    checkpoint_writer.emplace(slam_config, calibration, save_path, out, output_frame, T_base_cam, RANKSLAM_VERSION);
+    checkpointer.emplace(loop, robot.max_trajectory_poses, robot.checkpoint_s, std::ref(*checkpoint_writer));
+    std::cout << "checkpoints every " << robot.checkpoint_s << " s: outputs to " << out.string()
+              << (save_path.empty() ? std::string() : ", map to " + save_path.string()) << std::endl;
+  }
 
   nav::PoseOutputOptions output_options;
   output_options.broadcast = robot.output;
@@ -259,7 +289,17 @@ int run_live(const RunArgs& args) {
   parts.exit_after_end_s = robot.exit_after_end_s;
   parts.notifier = &notifier;
   parts.status_line = &status_line;
+  parts.checkpointer = checkpointer ? &*checkpointer : nullptr;
   const bool interrupted = run_live_loop(parts, [] { return stop_requested(); });
+  Checkpointer::Counters checkpoint_counters;
+  if (checkpointer) {
+    checkpointer->stop();
+    checkpoint_counters = checkpointer->counters();
+    if (checkpoint_counters.failed > 0) {
+      std::cerr << "warning: " << checkpoint_counters.failed << " checkpoints failed, the last: "
+                << checkpoint_counters.last_error << "\n";
+    }
+  }
 
   if (player) player->stop();
   stop_output = true;
@@ -277,6 +317,15 @@ int run_live(const RunArgs& args) {
   };
   // The trajectory is what the pose output sent; the map takes the last optimised key-frame poses.
   pipeline.finish();
+  if (!save_path.empty()) {
+    const auto start = std::chrono::steady_clock::now();
+    if (const std::string error = loop.save_map(save_path); !error.empty()) {
+      report_error(error);
+    } else {
+      std::printf("map saved to %s (%d key-frames, %.1f ms)\n", save_path.string().c_str(), loop.keyframe_store().size(),
+                  std::chrono::duration<double, std::milli>(std::chrono::steady_clock::now() - start).count());
+    }
+  }
   report_error(outputs.add_written("trajectory.txt", [&](const fs::path& path) {
     return eval::write_tum_trajectory(path, in_output_frame(pipeline.trajectory(), output_frame, T_base_cam));
   }));
@@ -320,6 +369,10 @@ int run_live(const RunArgs& args) {
   json.integer("bus_frames_tx", static_cast<long long>(bus_statistics.frames_tx));
   json.integer("bus_error_frames", static_cast<long long>(bus_statistics.error_frames));
   json.integer("bus_faults", static_cast<long long>(bus_statistics.faults));
+  json.string("map_file", save_path.string());
+  json.integer("checkpoints_written", static_cast<long long>(checkpoint_counters.written));
+  json.integer("checkpoints_skipped", static_cast<long long>(checkpoint_counters.skipped));
+  json.integer("checkpoint_failures", static_cast<long long>(checkpoint_counters.failed));
   json.boolean("interrupted", interrupted);
   json.end_object();
   report_error(outputs.add("report.json", std::string_view(json.str())));

@@ -66,6 +66,37 @@ int KeyframeStore::retirement_candidate(const Eigen::Isometry3d& T_world_current
   return best;
 }
 
+bool KeyframeStore::copy_from(const KeyframeStore& other) {
+  if (other.slots_.size() != slots_.size()) return false;
+  for (std::size_t i = 0; i < slots_.size(); ++i) {
+    const StoredKeyframe& from = other.slots_[i];
+    StoredKeyframe& to = slots_[i];
+    if (!from.used) {
+      to.used = false;
+      continue;
+    }
+    // A key-frame's features and points are fixed once stored; its pose and links are not.
+    if (!to.used || to.sequence != from.sequence || to.point_count != from.point_count) {
+      copy_features(from.photometric, to.photometric);
+      copy_features(from.geometric, to.geometric);
+      const auto points = std::min(from.points.size(), to.points.size());
+      to.point_count = static_cast<int>(std::min<std::size_t>(static_cast<std::size_t>(from.point_count), points));
+      std::copy_n(from.points.begin(), to.point_count, to.points.begin());
+    }
+    to.used = true;
+    to.node = from.node;
+    to.generation = from.generation;
+    to.sequence = from.sequence;
+    to.stamp_s = from.stamp_s;
+    to.T_world_cam = from.T_world_cam;
+    to.path_m = from.path_m;
+    to.velocity = from.velocity;
+    to.loop_closures = from.loop_closures;
+  }
+  size_ = other.size_;
+  return true;
+}
+
 void KeyframeStore::copy_features(const PhotometricFeatures& from, PhotometricFeatures& to) {
   to.clear();
   const auto n = static_cast<int>(std::min({from.size(), to.keypoints.capacity(), to.points_cam.capacity(),

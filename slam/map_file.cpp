@@ -658,6 +658,13 @@ std::string save_map_file(const std::filesystem::path& path, const KeyframeStore
       path, std::span<const char>(reinterpret_cast<const char*>(bytes.data()), bytes.size()));
 }
 
+std::string save_map_file(const std::filesystem::path& path, const MapSnapshot& snapshot,
+                          std::vector<unsigned char>& bytes) {
+  encode_map(snapshot.store, snapshot.graph, snapshot.threshold, snapshot.digests, bytes);
+  return hal::write_file_atomically(
+      path, std::span<const char>(reinterpret_cast<const char*>(bytes.data()), bytes.size()));
+}
+
 MapFileInfo load_map_file(const std::filesystem::path& path, const MapDigests& expected, const MapContents& into) {
   std::vector<unsigned char> bytes;
   if (std::string error = hal::read_regular_file(path, kMaxMapFileBytes, bytes); !error.empty()) {

@@ -251,6 +251,22 @@ std::string SlamLoop::save_map(const std::filesystem::path& path) const {
   return save_map_file(path, keyframe_store_, backend_.graph(), loop_closer_.adaptive_threshold(), map_digests_);
 }
 
+std::unique_ptr<MapSnapshot> SlamLoop::make_map_snapshot() const {
+  auto snapshot = std::make_unique<MapSnapshot>(MapSnapshot{make_keyframe_store(config_), graph::PoseGraph(),
+                                                            loop_closer_.adaptive_threshold(), map_digests_});
+  if (const std::string error = snapshot->graph.configure(backend_.graph().capacity()); !error.empty()) {
+    throw std::invalid_argument("map snapshot: " + error);
+  }
+  return snapshot;
+}
+
+void SlamLoop::snapshot_map(MapSnapshot& snapshot) const {
+  (void)snapshot.store.copy_from(keyframe_store_);
+  (void)snapshot.graph.copy_from(backend_.graph());
+  snapshot.threshold = loop_closer_.adaptive_threshold();
+  snapshot.digests = map_digests_;
+}
+
 MapFileInfo SlamLoop::load_map(const std::filesystem::path& path) {
   const MapFileInfo info = load_map_file(
       path, map_digests_, {keyframe_store_, backend_.graph_to_restore(), loop_closer_.adaptive_threshold()});

@@ -25,6 +25,7 @@
 #                           boot under it finishes (remembered per host kernel and qemu version)
 #   RANKSLAM_VM_KEEP        when set, keep the run directory (console log, command output files)
 #   RANKSLAM_VM_NO_INSTALL  when set, never run apt-get (missing tools mean skip)
+#   RANKSLAM_VM_FILES_TO    when set, the files the command wrote are copied to this directory
 #   RANKSLAM_VM_VIVID_OPTS  module options for vivid (default n_devs=1)
 # Variables named GTEST_* are passed into the VM; the command also sees RANKSLAM_VM=1,
 # RANKSLAM_VM_OUT (a directory whose files reach the host; kept when the command fails or
@@ -363,6 +364,10 @@ run_vm() {
   local code="${line#*exit=}"
   [[ "$code" =~ ^[0-9]+$ ]] || fail "malformed result line '$line'"
   log "kernel $kernel_version, VM run ${elapsed_s} s, command exit code $code"
+  if [[ -n "${RANKSLAM_VM_FILES_TO:-}" ]]; then
+    mkdir -p "$RANKSLAM_VM_FILES_TO"
+    cp -a "$run_dir/out/files/." "$RANKSLAM_VM_FILES_TO/" 2>/dev/null || true
+  fi
   if [[ -n "$(ls -A "$run_dir/out/files" 2>/dev/null)" ]] && [[ "$code" != 0 || -n "${RANKSLAM_VM_KEEP:-}" ]]; then
     keep_dir=1
     log "files the command wrote: $run_dir/out/files"

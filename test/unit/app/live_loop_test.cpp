@@ -4,6 +4,7 @@
 // past its end, each read timing out) or sticks inside read(). READY=1 must come when the loop
 // starts, WATCHDOG=1 while the loop goes round whether or not frames come, none while it is
 // stuck, STOPPING=1 at the end. No time is asserted: only which datagrams arrive.
+#include "checkpointer.hpp"
 #include "commands.hpp"
 #include "exit_codes.hpp"
 #include "live_loop.hpp"
@@ -251,6 +252,72 @@ TEST_F(LiveLoopTest, WatchdogFollowsTheLoopNotTheCamera) {
 
 // The unit's instance reaches `run` as --can-interface: it is the interface used, and one that
 // differs from the file's is said. The host has no CAN interface: the start-up error names it.
+// Checkpoints (map.checkpoint_s): the loop's thread only copies (no allocation) and goes on; the
+// writer gets the map and trajectory as they were at the offer; a checkpoint due while the
+// writer is busy is skipped and counted; stop() waits for the write; the map file loads.
+TEST_F(LiveLoopTest, CheckpointsCopyOnTheLoopsThreadAndWriteOnTheirOwn) {
+  sim::SimulationOptions simulation;
+  simulation.scene = "office";
+  simulation.out_dir = dir_ / "recording";
+  simulation.frames = 10;
+  ASSERT_EQ(sim::simulate_recording(simulation, nullptr), "");
+  replay::Recording recording;
+  ASSERT_EQ(replay::open_recording(simulation.out_dir, recording), "");
+  replay::ReplayDepthCamera camera(recording, replay::ReplayOptions{});
+  ASSERT_EQ(camera.open(), "");
+  PipelineOptions pipeline_options;
+  pipeline_options.max_frames = 100;
+  const slam::SlamConfig config;
+  FramePipeline pipeline(config, camera.calibration(), nullptr, pipeline_options);
+  hal::RgbdFrame frame;
+  while (camera.read(frame, std::chrono::seconds(5)) == hal::ReadStatus::kOk) (void)pipeline.process(frame);
+  ASSERT_GE(pipeline.loop().keyframes(), 1);
+
+  const fs::path map_path = dir_ / "map.rsm";
+  std::mutex gate_mutex;
+  std::condition_variable gate_changed;
+  bool gate_open = false;
+  std::size_t written_poses = 0;
+  std::thread::id writer_thread;
+  std::vector<unsigned char> bytes;
+  Checkpointer checkpointer(pipeline.loop(), pipeline_options.max_frames, 0.0, [&](const CheckpointContents& contents) {
+    std::unique_lock lock(gate_mutex);
+    gate_changed.wait(lock, [&] { return gate_open; });
+    written_poses = contents.trajectory.size();
+    writer_thread = std::this_thread::get_id();
+    return slam::save_map_file(map_path, contents.map, bytes);
+  });
+  long allocations = 0;
+  bool first = false;
+  bool second = true;
+  {
+    const test_support::CountAllocations count;
+    first = checkpointer.offer(pipeline);
+    second = checkpointer.offer(pipeline);  // the writer is still held at the gate
+    allocations = count.this_thread_allocations();
+  }
+  EXPECT_TRUE(first);
+  EXPECT_FALSE(second);
+  EXPECT_EQ(allocations, 0);
+  EXPECT_EQ(checkpointer.counters().skipped, 1U);
+  {
+    const std::lock_guard lock(gate_mutex);
+    gate_open = true;
+  }
+  gate_changed.notify_all();
+  checkpointer.stop();
+  const Checkpointer::Counters counters = checkpointer.counters();
+  EXPECT_EQ(counters.written, 1U) << counters.last_error;
+  EXPECT_EQ(counters.failed, 0U);
+  EXPECT_FALSE(checkpointer.offer(pipeline)) << "offer after stop()";
+  EXPECT_NE(writer_thread, std::this_thread::get_id());
+  EXPECT_EQ(written_poses, pipeline.trajectory().size());
+
+  FramePipeline restarted(config, camera.calibration(), nullptr, pipeline_options);
+  ASSERT_EQ(restarted.load_map(map_path), kExitOk);
+  EXPECT_EQ(restarted.loop().keyframe_store().size(), pipeline.loop().keyframe_store().size());
+}
+
 TEST_F(LiveLoopTest, CanInterfaceOptionWinsOverTheConfigurationAndIsSaid) {
   sim::SimulationOptions simulation;
   simulation.scene = "office";

@@ -153,6 +153,43 @@ TEST(MapFile, TinyMapRoundTripsFieldByFieldAndByteForByte) {
   EXPECT_EQ(again, bytes);
 }
 
+// The checkpoint's copy: a store copied into one of the same sizes encodes to the same bytes,
+// after a first copy, a retired key-frame, a new one in its slot and moved poses too.
+TEST(MapFile, AStoreCopiedIntoOneOfTheSameSizesEncodesTheSame) {
+  TinyMap map;
+  fill_tiny_map(map);
+  TinyMap copy;
+  std::vector<unsigned char> original;
+  std::vector<unsigned char> copied;
+  ASSERT_TRUE(copy.store.copy_from(map.store));
+  ASSERT_TRUE(copy.graph.copy_from(map.graph));
+  encode_map(map.store, map.graph, map.threshold, kDigests, original);
+  encode_map(copy.store, copy.graph, map.threshold, kDigests, copied);
+  EXPECT_TRUE(original == copied);
+
+  // Slot 1 retired and reused by a new key-frame with other features; slot 3 moved.
+  StoredKeyframe& reused = map.store.slot(1);
+  map.store.release(1);
+  map.store.occupy(1);
+  reused.sequence = 10;
+  reused.node = map.store.slot(0).node;
+  reused.photometric.keypoints.resize(1);
+  reused.photometric.points_cam.resize(1);
+  reused.photometric.sigma_m.resize(1);
+  reused.photometric.descriptors = reused.photometric.descriptor_storage.rowRange(0, 1);
+  reused.point_count = 1;
+  map.store.slot(3).T_world_cam = test_support::tiny_pose(7);
+  map.store.release(0);
+  ASSERT_TRUE(copy.store.copy_from(map.store));
+  encode_map(map.store, map.graph, map.threshold, kDigests, original);
+  encode_map(copy.store, copy.graph, map.threshold, kDigests, copied);
+  EXPECT_TRUE(original == copied) << original.size() << " bytes against " << copied.size();
+  EXPECT_EQ(copy.store.size(), map.store.size());
+
+  slam::KeyframeStore other_sizes{5, 8, 4, 8, 16};
+  EXPECT_FALSE(other_sizes.copy_from(map.store));
+}
+
 TEST(MapFile, RefusesTruncationAtEveryOffset) {
   const std::vector<unsigned char> bytes = tiny_map_bytes();
   ASSERT_EQ(refusal(bytes), "");

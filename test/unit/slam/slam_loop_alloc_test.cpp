@@ -356,6 +356,38 @@ TEST_F(SlamLoopAllocations, RelocalisationAfterJumpsAllocatesNothing) {
   EXPECT_GT(relocalised, 0);  // the counted frames took the relocalisation path
 }
 
+// A checkpoint's copy of the map (SlamLoop::snapshot_map) on the loop's thread: no allocation,
+// and the copy encodes to the bytes the live map does, also after key-frames are added.
+TEST_F(SlamLoopAllocations, MapSnapshotsAllocateNothingAndEncodeAsTheMap) {
+  ASSERT_TRUE(error_->empty()) << *error_;
+  SlamLoop loop(config_for(Mode::kFused), recording_->calibration);
+  loop.set_synchronous_backend(true);
+  for (int i = 0; i < kWarmUpFrames; ++i) (void)loop.process((*frames_)[static_cast<std::size_t>(i % kLoopFrames)]);
+  const std::unique_ptr<MapSnapshot> snapshot = loop.make_map_snapshot();
+  std::vector<unsigned char> live;
+  std::vector<unsigned char> copied;
+  int compared = 0;
+  for (int round = 0; round < 3; ++round) {
+    for (int i = 0; i < 30; ++i) {
+      hal::RgbdFrame frame = (*frames_)[static_cast<std::size_t>((kWarmUpFrames + 30 * round + i) % kLoopFrames)];
+      (void)loop.process(frame);
+    }
+    long allocations = 0;
+    {
+      const CountAllocations count;
+      loop.snapshot_map(*snapshot);
+      allocations = count.this_thread_allocations();
+    }
+    EXPECT_EQ(allocations, 0) << "round " << round;
+    encode_map(loop.keyframe_store(), loop.pose_graph(), snapshot->threshold, snapshot->digests, live);
+    encode_map(snapshot->store, snapshot->graph, snapshot->threshold, snapshot->digests, copied);
+    EXPECT_TRUE(live == copied) << "round " << round << ": " << live.size() << " bytes live, " << copied.size() << " copied";
+    ++compared;
+  }
+  EXPECT_GT(loop.keyframe_store().size(), 2);
+  EXPECT_EQ(compared, 3);
+}
+
 // All of a key-frame's candidates in its own frame (loop_candidates_per_frame 0) against one per
 // frame: the same candidates are registered either way, and closures found.
 TEST_F(SlamLoopAllocations, LoopCandidatesAreRegisteredOnePerFrameOrAllAtTheKeyframe) {

@@ -9,7 +9,8 @@ namespace rankslam::hal {
 
 /// Writes `bytes` to `path` so a reader never sees a half-written file: the data goes to a
 /// temporary file in the same directory, is flushed to disk, then renamed over `path`, and the
-/// directory is flushed.
+/// directory is flushed. Where the file system has O_TMPFILE, the temporary file has no name
+/// until it is complete, so a process killed while writing leaves nothing half-written.
 /// Returns an empty string on success, otherwise a message naming the file and the cause.
 [[nodiscard]] std::string write_file_atomically(const std::filesystem::path& path,
                                                 std::span<const char> bytes);

@@ -76,6 +76,11 @@ class KeyframeStore {
   [[nodiscard]] int retirement_candidate(const Eigen::Isometry3d& T_world_current, double min_distance_m,
                                          int protect_recent) const;
 
+  /// Makes this store hold what `other` holds (no allocation; the stores must have been made
+  /// with the same sizes): every slot's pose and links, and the features and points of the
+  /// key-frames this store did not hold yet (told by their sequence), so copying again after a
+  /// few new key-frames costs only those. False (nothing copied) when the capacities differ.
+  bool copy_from(const KeyframeStore& other);
   /// Copies features into a slot (no allocation: the slot was sized at set-up; features beyond
   /// its capacity are dropped).
   static void copy_features(const PhotometricFeatures& from, PhotometricFeatures& to);

@@ -56,6 +56,16 @@ struct MapContents {
   AdaptiveLoopThreshold& threshold;
 };
 
+/// A copy of the map to write it off the loop's thread (checkpoints): objects sized like the SLAM
+/// loop's at set-up (SlamLoop::make_map_snapshot), filled by SlamLoop::snapshot_map without
+/// allocating.
+struct MapSnapshot {
+  KeyframeStore store;
+  graph::PoseGraph graph;
+  AdaptiveLoopThreshold threshold;
+  MapDigests digests;
+};
+
 /// What a loaded file said about itself.
 struct MapFileInfo {
   std::uint32_t format_version = 0;
@@ -82,6 +92,10 @@ MapFileInfo decode_map(std::span<const unsigned char> bytes, const std::string& 
 [[nodiscard]] std::string save_map_file(const std::filesystem::path& path, const KeyframeStore& store,
                                         const graph::PoseGraph& graph, const AdaptiveLoopThreshold& threshold,
                                         const MapDigests& digests);
+/// The same from a snapshot, encoding into `bytes` (kept between calls so that a writer's buffer
+/// grows with the map instead of being allocated for every write).
+[[nodiscard]] std::string save_map_file(const std::filesystem::path& path, const MapSnapshot& snapshot,
+                                        std::vector<unsigned char>& bytes);
 /// Reads `path` (a regular file) and decodes it as decode_map does; throws std::runtime_error
 /// naming the file.
 MapFileInfo load_map_file(const std::filesystem::path& path, const MapDigests& expected, const MapContents& into);

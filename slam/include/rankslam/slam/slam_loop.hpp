@@ -93,6 +93,11 @@ class SlamLoop {
   /// are kLost until one is found in it (search_loaded_map). Throws std::runtime_error naming the file and the fault, the
   /// map then empty.
   MapFileInfo load_map(const std::filesystem::path& path);
+  /// Set-up (allocates): a snapshot sized for this loop's map.
+  [[nodiscard]] std::unique_ptr<MapSnapshot> make_map_snapshot() const;
+  /// Copies the map as save_map would write it into `snapshot` (no allocation; features are
+  /// copied only for the key-frames stored since the snapshot was last filled).
+  void snapshot_map(MapSnapshot& snapshot) const;
   [[nodiscard]] const KeyframeStore& keyframe_store() const { return keyframe_store_; }
   [[nodiscard]] const graph::PoseGraph& pose_graph() const { return backend_.graph(); }
 
