@@ -1,6 +1,7 @@
 // Saving and loading the map file (slam/map_file.hpp) of the simulated office replayed in fused
 // mode (300 frames, 16-17 key-frames): SlamLoop::save_map (encode, write, fsync, rename) and
-// SlamLoop::load_map (read, verify, decode, rebuild the point map) into a loop set up beforehand.
+// SlamLoop::load_map (read, verify, decode, rebuild the point map) into a loop set up beforehand,
+// and the copy a checkpoint makes on the loop's thread (SlamLoop::snapshot_map).
 // Counters: bytes (the file's size), keyframes. The set-up simulates and replays the scene once
 // (about 20 s).
 //   perf_map_file [benchmark flags]
@@ -85,6 +86,33 @@ void BM_LoadMap(benchmark::State& state) {
   counters(state, o, path);
 }
 BENCHMARK(BM_LoadMap)->Unit(benchmark::kMillisecond)->UseRealTime();
+
+// A checkpoint's share of the loop's thread (SlamLoop::snapshot_map): the first copy into a fresh
+// snapshot (every key-frame's features) and a later one with nothing new (poses and the graph),
+// against BM_SaveMap above, which the checkpointer's thread then does from the copy.
+void BM_SnapshotFirst(benchmark::State& state) {
+  Office& o = office();
+  if (!o.error.empty()) return state.SkipWithError(o.error.c_str());
+  const std::unique_ptr<slam::MapSnapshot> snapshot = o.loop->make_map_snapshot();
+  for (auto _ : state) {
+    state.PauseTiming();
+    for (int i = 0; i < snapshot->store.capacity(); ++i) snapshot->store.release(i);
+    state.ResumeTiming();
+    o.loop->snapshot_map(*snapshot);
+  }
+  state.counters["keyframes"] = snapshot->store.size();
+}
+BENCHMARK(BM_SnapshotFirst)->Unit(benchmark::kMillisecond)->UseRealTime();
+
+void BM_SnapshotNothingNew(benchmark::State& state) {
+  Office& o = office();
+  if (!o.error.empty()) return state.SkipWithError(o.error.c_str());
+  const std::unique_ptr<slam::MapSnapshot> snapshot = o.loop->make_map_snapshot();
+  o.loop->snapshot_map(*snapshot);
+  for (auto _ : state) o.loop->snapshot_map(*snapshot);
+  state.counters["keyframes"] = snapshot->store.size();
+}
+BENCHMARK(BM_SnapshotNothingNew)->Unit(benchmark::kMillisecond)->UseRealTime();
 
 }  // namespace
 
