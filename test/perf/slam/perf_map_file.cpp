@@ -17,6 +17,7 @@
 
 #include <chrono>
 #include <filesystem>
+#include <fstream>
 #include <memory>
 #include <string>
 
@@ -90,10 +91,24 @@ BENCHMARK(BM_LoadMap)->Unit(benchmark::kMillisecond)->UseRealTime();
 // A checkpoint's share of the loop's thread (SlamLoop::snapshot_map): the first copy into a fresh
 // snapshot (every key-frame's features) and a later one with nothing new (poses and the graph),
 // against BM_SaveMap above, which the checkpointer's thread then does from the copy.
+/// Resident memory of the process, MiB (/proc/self/statm).
+double rss_mib() {
+  std::ifstream statm("/proc/self/statm");
+  long pages = 0;
+  long resident = 0;
+  statm >> pages >> resident;
+  return static_cast<double>(resident) * static_cast<double>(::sysconf(_SC_PAGESIZE)) / (1024.0 * 1024.0);
+}
+
 void BM_SnapshotFirst(benchmark::State& state) {
   Office& o = office();
   if (!o.error.empty()) return state.SkipWithError(o.error.c_str());
+  const double rss_before = rss_mib();
   const std::unique_ptr<slam::MapSnapshot> snapshot = o.loop->make_map_snapshot();
+  // The snapshot's memory at set-up (sized for slam.keyframe_capacity key-frames), as the first
+  // call finds it: later calls reuse the heap the first one freed.
+  static const double snapshot_rss = rss_mib() - rss_before;
+  state.counters["snapshot_rss_mib"] = snapshot_rss;
   for (auto _ : state) {
     state.PauseTiming();
     for (int i = 0; i < snapshot->store.capacity(); ++i) snapshot->store.release(i);

@@ -95,6 +95,8 @@ TEST_F(RobotConfigTest, ExampleRobotConfigurationLoads) {
   EXPECT_EQ(config.camera_source, CameraSource::kOpenNI2);
   EXPECT_EQ(config.camera_location, "");
   EXPECT_DOUBLE_EQ(config.status_interval_s, 60.0);
+  EXPECT_EQ(config.map_file, "/var/lib/rankslam/map.rsm");  // in the service's state directory
+  EXPECT_DOUBLE_EQ(config.checkpoint_s, 30.0);
 
   RobotConfig replay;
   ASSERT_EQ(load_robot_config(std::filesystem::path(RANKSLAM_SOURCE_DIR) / "deploy/config/replay-robot.yaml", replay), "");
@@ -114,6 +116,25 @@ TEST_F(RobotConfigTest, StatusIntervalIsRangeChecked) {
             std::string::npos);
   EXPECT_NE(error_of("camera: {source: 'replay:r'}\noutput: {status_interval_s: 86401}\n").find("output.status_interval_s"),
             std::string::npos);
+}
+
+TEST_F(RobotConfigTest, MapFileIsTakenFromTheFilesDirectoryAndTheCheckpointIntervalRangeChecked) {
+  RobotConfig config;
+  ASSERT_EQ(load("camera: {source: 'replay:r'}\n", config), "");
+  EXPECT_TRUE(config.map_file.empty());
+  EXPECT_DOUBLE_EQ(config.checkpoint_s, 30.0);
+  ASSERT_EQ(load("camera: {source: 'replay:r'}\nmap: {file: maps/m.rsm, checkpoint_s: 0}\n", config), "");
+  EXPECT_EQ(config.map_file, dir_ / "maps/m.rsm");
+  EXPECT_DOUBLE_EQ(config.checkpoint_s, 0.0);
+  const auto error_of = [&](const std::string& text) {
+    RobotConfig rejected;
+    return load(text, rejected);
+  };
+  for (const char* bad : {"map: {checkpoint_s: -1}\n", "map: {checkpoint_s: 86401}\n", "map: {checkpoint_s: .nan}\n",
+                          "map: {checkpoint_s: often}\n"}) {
+    EXPECT_NE(error_of(std::string("camera: {source: 'replay:r'}\n") + bad).find("map.checkpoint_s"), std::string::npos) << bad;
+  }
+  EXPECT_NE(error_of("camera: {source: 'replay:r'}\nmap: {path: m.rsm}\n").find("map.path"), std::string::npos);
 }
 
 }  // namespace
