@@ -23,6 +23,15 @@ LoopCloser::LoopCloser(const SlamConfig& config, KeyframeStore& store, Registrar
   log_.resize(static_cast<std::size_t>(std::max(kClosureLogMinCapacity, 4 * config_.loop.max_candidates)));
 }
 
+double LoopCloser::travelled_m(const StoredKeyframe& current, const StoredKeyframe& stored) const {
+  const bool current_since = current.sequence >= relocalised_first_sequence_;
+  const bool stored_since = stored.sequence >= relocalised_first_sequence_;
+  if (current_since == stored_since) return std::abs(current.path_m - stored.path_m);
+  const StoredKeyframe& newer = current_since ? current : stored;
+  const StoredKeyframe& older = current_since ? stored : current;
+  return std::abs(newer.path_m - relocalised_path_m_) + std::abs(older.path_m - relocalised_path_m_);
+}
+
 void LoopCloser::start(int slot, const geometry::GeometricFeatures* geometric) {
   candidates_.clear();
   tried_ = next_ = 0;
@@ -35,7 +44,7 @@ void LoopCloser::start(int slot, const geometry::GeometricFeatures* geometric) {
     if (!stored.used || i == slot || stored.node < 0) continue;
     if (stored.sequence > current.sequence - config_.loop.min_keyframe_gap) continue;
     if (geometric == nullptr && stored.photometric.source != current.photometric.source) continue;
-    const double travelled_m = current.path_m - stored.path_m;
+    const double travelled_m = this->travelled_m(current, stored);
     const Eigen::Isometry3d relative = stored.T_world_cam.inverse() * current.T_world_cam;
     const double distance_m = relative.translation().norm();
     if (distance_m > config_.loop.search_radius_m + config_.loop.drift_per_m * travelled_m ||
@@ -116,7 +125,7 @@ void LoopCloser::try_candidate(StoredKeyframe& stored, FrameResult& result) {
   }
 
   // Pose consistency: a true closure corrects the drift accumulated since the candidate, no more.
-  const double travelled_m = current.path_m - stored.path_m;
+  const double travelled_m = this->travelled_m(current, stored);
   const Eigen::Isometry3d correction = predicted.inverse() * T_stored_current;
   if (!config_.loop.within_drift(correction.translation().norm(), lie::rotation_deg(correction), travelled_m)) return;
   // Inlier geometry: the matches that fit must spread in two directions at least; matches on a

@@ -133,6 +133,9 @@ void SlamLoop::relocalise(FrameResult& result) {
   // The next key-frame's sequential edge starts at the key-frame the frame was found with.
   latest_keyframe_slot_ = found.slot;
   T_world_last_keyframe_ = keyframe_store_.slot(found.slot).T_world_cam;
+  // The path goes on from the key-frame found: drift allowances count from there.
+  path_m_ = keyframe_store_.slot(found.slot).path_m;
+  loop_closer_.set_relocalisation(keyframe_sequence_ + 1, path_m_);
   backend_.restart_wheel_motion();
   in_map_ = true;
   failed_in_a_row_ = 0;

@@ -41,6 +41,18 @@ class LoopCloser {
   [[nodiscard]] AdaptiveLoopThreshold& adaptive_threshold() { return threshold_; }
   [[nodiscard]] const AdaptiveLoopThreshold& adaptive_threshold() const { return threshold_; }
 
+  /// After a relocalisation onto a stored key-frame whose path length is `path_m`: the
+  /// key-frames from `first_sequence` on continue the path from there (see travelled_m).
+  void set_relocalisation(std::int64_t first_sequence, double path_m) {
+    relocalised_first_sequence_ = first_sequence;
+    relocalised_path_m_ = path_m;
+  }
+  /// The path along which drift accumulates between two key-frames: the distance travelled
+  /// between them on one chain; from a key-frame made since the last relocalisation to an older
+  /// one, the way through the key-frame relocalised onto (an older map's path lengths do not
+  /// count the way from it to this chain).
+  [[nodiscard]] double travelled_m(const StoredKeyframe& current, const StoredKeyframe& stored) const;
+
   static constexpr int kClosureLogMinCapacity = 64;
 
  private:
@@ -76,6 +88,8 @@ class LoopCloser {
   const geometry::GeometricFeatures* search_geometric_ = nullptr;
   geometry::GeometricFeatures search_copy_;
   int closures_ = 0;
+  std::int64_t relocalised_first_sequence_ = 0;
+  double relocalised_path_m_ = 0.0;
   /// The latest accepted closures, by index modulo the size.
   std::vector<LoopClosure> log_;
 };
