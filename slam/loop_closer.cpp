@@ -103,25 +103,12 @@ void LoopCloser::try_candidate(StoredKeyframe& stored, FrameResult& result) {
   // holding what the view leaves free, and is not taken unrefined.
   Eigen::Isometry3d T_stored_current = estimate.T_target_source;
   bool refined_by_icp = false;
-  if (with_geometry && registrar_.photometric_needs_refinement(config_.loop.icp_above_rotation_sigma_deg)) {
-    if (stored.geometric.cloud_count < 3 || search_geometric_->cloud_count < 3) return;
-    geometry::IcpPrior feature_prior;
-    feature_prior.T_previous_current = estimate.T_target_source;
-    feature_prior.information =
-        step_prior_information(estimate.T_target_source, Eigen::Isometry3d::Identity(), registrar_.icp_prior_information());
-    const geometry::FrameRegistration refined =
-        geometric_.register_frames(stored.geometric, *search_geometric_, estimate.T_target_source, feature_prior);
-    if (!refined.ok || refined.refined_from == geometry::RefinementStart::kNone ||
-        refined.icp_inliers < config_.min_icp_inliers) {
-      return;
-    }
-    // Refinement that could not fix what the features left loose keeps their error.
-    if (least_information_ratio(refined.icp_information, feature_prior.information) <
-        config_.loop.icp_min_information_ratio) {
-      return;
-    }
-    T_stored_current = refined.T_previous_current;
-    refined_by_icp = true;
+  if (with_geometry) {
+    const StoredRefinement refinement =
+        refine_on_stored_cloud(registrar_, geometric_, config_, config_.loop.icp_above_rotation_sigma_deg, stored.geometric,
+                               *search_geometric_, T_stored_current);
+    if (refinement == StoredRefinement::kFailed) return;
+    refined_by_icp = refinement == StoredRefinement::kRefined;
   }
 
   // Pose consistency: a true closure corrects the drift accumulated since the candidate, no more.

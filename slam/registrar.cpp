@@ -321,3 +321,30 @@ geometry::IcpPrior Registrar::fused_icp_prior(const Eigen::Isometry3d& at_rest, 
 }
 
 }  // namespace rankslam::slam
+
+namespace rankslam::slam {
+
+StoredRefinement refine_on_stored_cloud(const Registrar& registrar, geometry::GeometricFrontend& geometric,
+                                        const SlamConfig& config, double above_rotation_sigma_deg,
+                                        const geometry::GeometricFeatures& stored,
+                                        const geometry::GeometricFeatures& current, Eigen::Isometry3d& T_stored_current) {
+  if (!registrar.photometric_needs_refinement(above_rotation_sigma_deg)) return StoredRefinement::kNotNeeded;
+  if (stored.cloud_count < 3 || current.cloud_count < 3) return StoredRefinement::kFailed;
+  geometry::IcpPrior feature_prior;
+  feature_prior.T_previous_current = T_stored_current;
+  feature_prior.information =
+      step_prior_information(T_stored_current, Eigen::Isometry3d::Identity(), registrar.icp_prior_information());
+  const geometry::FrameRegistration refined = geometric.register_frames(stored, current, T_stored_current, feature_prior);
+  if (!refined.ok || refined.refined_from == geometry::RefinementStart::kNone ||
+      refined.icp_inliers < config.min_icp_inliers) {
+    return StoredRefinement::kFailed;
+  }
+  // Refinement that could not fix what the features left loose keeps their error.
+  if (least_information_ratio(refined.icp_information, feature_prior.information) < config.loop.icp_min_information_ratio) {
+    return StoredRefinement::kFailed;
+  }
+  T_stored_current = refined.T_previous_current;
+  return StoredRefinement::kRefined;
+}
+
+}  // namespace rankslam::slam

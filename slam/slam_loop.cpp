@@ -28,7 +28,7 @@ SlamLoop::SlamLoop(const SlamConfig& config, const hal::Calibration& calibration
       keyframe_store_(make_keyframe_store(config_)),
       backend_(config_, calibration.rgb.T_base_cam, calibration.wheels.has_value()),
       loop_closer_(config_, keyframe_store_, registrar_, geometric_, backend_),
-      relocaliser_(config_, keyframe_store_, registrar_),
+      relocaliser_(config_, keyframe_store_, registrar_, geometric_),
       map_digests_{calibration_digest(calibration), config_digest(config_)} {
   images_.warm_up();
   if (const std::string error = team_.start(config_.threads); !error.empty()) {
@@ -281,6 +281,9 @@ MapFileInfo SlamLoop::load_map(const std::filesystem::path& path) {
     keyframe_sequence_ = keyframe.sequence;
     path_m_ = keyframe.path_m;
   }
+  // The loaded map is the frame the run is placed in: optimisations move only what this run adds.
+  graph::PoseGraph& graph = backend_.graph_to_restore();
+  for (int node = 0; node < graph.capacity().max_nodes; ++node) (void)graph.hold(node);
   map_.rebuild(keyframe_store_);
   // Poses are in the loaded map's frame from the first frame found in it.
   if (keyframe_store_.size() > 0) search_loaded_map();

@@ -126,6 +126,7 @@ std::string PoseGraph::configure(const Capacity& capacity) {
   fixed_id_ = -1;
   T_world_node_.assign(nodes, Eigen::Isometry3d::Identity());
   active_.assign(nodes, 0);
+  held_.assign(nodes, 0);
   generation_.assign(nodes, 0);
   added_order_.assign(nodes, 0);
   next_added_order_ = 0;
@@ -144,6 +145,7 @@ int PoseGraph::add_node(const Eigen::Isometry3d& T_world_node) {
   const auto id = static_cast<int>(free_slot - active_.begin());
   const auto slot = static_cast<std::size_t>(id);
   active_[slot] = 1;
+  held_[slot] = 0;
   ++generation_[slot];
   added_order_[slot] = next_added_order_++;
   T_world_node_[slot] = T_world_node;
@@ -273,11 +275,20 @@ bool PoseGraph::remove_node(int id) {
 
   const auto slot = static_cast<std::size_t>(id);
   active_[slot] = 0;
+  held_[slot] = 0;
   T_world_node_[slot] = Eigen::Isometry3d::Identity();
   --node_count_;
   if (fixed_id_ == id) fixed_id_ = heir >= 0 ? heir : lowest_active_node();
   return true;
 }
+
+bool PoseGraph::hold(int id) {
+  if (!contains(id)) return false;
+  held_[static_cast<std::size_t>(id)] = 1;
+  return true;
+}
+
+bool PoseGraph::held(int id) const { return contains(id) && held_[static_cast<std::size_t>(id)] != 0; }
 
 bool PoseGraph::set_fixed(int id) {
   if (!contains(id)) return false;
@@ -318,6 +329,7 @@ bool PoseGraph::restore_slot(int id, std::uint32_t generation, bool node, std::u
   generation_[slot] = generation;
   if (!node) return true;
   active_[slot] = 1;
+  held_[slot] = 0;
   added_order_[slot] = added_order;
   T_world_node_[slot] = T_world_node;
   ++node_count_;
@@ -340,6 +352,7 @@ bool PoseGraph::copy_from(const PoseGraph& other) {
   const auto other_nodes = static_cast<std::size_t>(other.capacity_.max_nodes);
   std::copy_n(other.T_world_node_.begin(), other_nodes, T_world_node_.begin());
   std::copy_n(other.active_.begin(), other_nodes, active_.begin());
+  std::copy_n(other.held_.begin(), other_nodes, held_.begin());
   std::copy_n(other.generation_.begin(), other_nodes, generation_.begin());
   std::copy_n(other.added_order_.begin(), other_nodes, added_order_.begin());
   next_added_order_ = other.next_added_order_;
@@ -415,12 +428,16 @@ OptimizeSummary PoseGraph::optimize(int max_iterations, const std::atomic<bool>*
       problem.SetManifold(a, &quaternion_manifold);
       problem.SetManifold(b, &quaternion_manifold);
     }
-    if (fixed_id_ >= 0) {
-      double* fixed = &parameters_[7 * static_cast<std::size_t>(fixed_id_)];
-      if (problem.HasParameterBlock(fixed)) {
-        problem.SetParameterBlockConstant(fixed);
-        problem.SetParameterBlockConstant(fixed + 4);
+    const auto hold_constant = [&](int id) {
+      double* node = &parameters_[7 * static_cast<std::size_t>(id)];
+      if (problem.HasParameterBlock(node)) {
+        problem.SetParameterBlockConstant(node);
+        problem.SetParameterBlockConstant(node + 4);
       }
+    };
+    if (fixed_id_ >= 0) hold_constant(fixed_id_);
+    for (int id = 0; id < capacity_.max_nodes; ++id) {
+      if (active_[static_cast<std::size_t>(id)] != 0 && held_[static_cast<std::size_t>(id)] != 0) hold_constant(id);
     }
 
     ceres::Solver::Options options;

@@ -146,6 +146,34 @@ TEST(PoseGraph, LoopClosureRemovesMostOfTheDrift) {
   EXPECT_NEAR(graph.cost(), summary.final_cost, 1e-9 * (1.0 + summary.final_cost));
 }
 
+// Held nodes (a loaded map's key-frames) stay where they are, as the fixed one does; the rest
+// still take the loop closure's correction; a copy holds the same nodes, a removed one is let go.
+TEST(PoseGraph, HeldNodesStayWhereTheyAreAndTheRestMove) {
+  const Trajectory trajectory = make_circle(TrajectoryConfig{});
+  PoseGraph graph;
+  ASSERT_TRUE(build_graph(trajectory, false, graph));
+  std::vector<Eigen::Isometry3d> before;
+  for (int id = 0; id < 10; ++id) {
+    ASSERT_TRUE(graph.hold(id));
+    before.push_back(graph.pose(id));
+  }
+  EXPECT_FALSE(graph.hold(graph.capacity().max_nodes));
+  EXPECT_TRUE(graph.held(3));
+  EXPECT_FALSE(graph.held(10));
+  const double before_m = rms_position_error_m(graph, trajectory);
+  const Eigen::Isometry3d last_before = graph.pose(graph.node_count() - 1);
+  PoseGraph copy;
+  ASSERT_EQ(copy.configure(graph.capacity()), "");
+  ASSERT_TRUE(copy.copy_from(graph));
+  const OptimizeSummary summary = copy.optimize();
+  ASSERT_TRUE(summary.ok) << summary.message;
+  for (int id = 0; id < 10; ++id) EXPECT_TRUE(copy.pose(id).isApprox(before[static_cast<std::size_t>(id)], 1e-12)) << id;
+  EXPECT_FALSE(copy.pose(copy.node_count() - 1).isApprox(last_before, 1e-6)) << "the other nodes did not move";
+  EXPECT_LT(rms_position_error_m(copy, trajectory), before_m);
+  ASSERT_TRUE(graph.remove_node(5));
+  EXPECT_FALSE(graph.held(5));
+}
+
 TEST(PoseGraph, WrongEdgeWithLowInformationBarelyMovesThePoses) {
   TrajectoryConfig config;
   config.odometry_yaw_bias_rad = 0.0;

@@ -117,4 +117,23 @@ class Registrar {
   std::vector<double> correspondence_sigma_m_;
 };
 
+/// How a registration against a stored key-frame (a loop closure, a relocalisation) came out of
+/// refine_on_stored_cloud.
+enum class StoredRefinement {
+  kNotNeeded,  ///< the features fix the motion well: their estimate stands
+  kRefined,    ///< refined by ICP on the stored cloud
+  kFailed,     ///< it needed refining and ICP could not fix what the features left loose
+};
+
+/// Refines, as tracking does, a registration of `current` against a stored key-frame that the
+/// registrar has just made (`T_stored_current`, replaced when refined) where its photometric
+/// estimate needs it (few inliers or a rotation poorly fixed, above `above_rotation_sigma_deg`):
+/// point-to-plane ICP on the stored key-frame's sampled cloud, the feature estimate as a prior
+/// holding what the view leaves free.
+[[nodiscard]] StoredRefinement refine_on_stored_cloud(const Registrar& registrar, geometry::GeometricFrontend& geometric,
+                                                      const SlamConfig& config, double above_rotation_sigma_deg,
+                                                      const geometry::GeometricFeatures& stored,
+                                                      const geometry::GeometricFeatures& current,
+                                                      Eigen::Isometry3d& T_stored_current);
+
 }  // namespace rankslam::slam

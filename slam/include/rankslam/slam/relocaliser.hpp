@@ -33,7 +33,8 @@ struct Relocalisation {
 class Relocaliser {
  public:
   /// The store and registrar are the loop's and must outlive this.
-  Relocaliser(const SlamConfig& config, const KeyframeStore& store, Registrar& registrar);
+  Relocaliser(const SlamConfig& config, const KeyframeStore& store, Registrar& registrar,
+              geometry::GeometricFrontend& geometric);
 
   /// Forgets a search under way (the next search ranks the store afresh).
   void reset();
@@ -46,12 +47,15 @@ class Relocaliser {
   /// A key-frame the frame can be registered with (its features of the same image kind).
   [[nodiscard]] bool usable(int slot, const PhotometricFeatures& features) const;
   /// Registers the frame against the key-frame in `slot`: true with `found` when it passes.
+  /// The confirmed relocalisation refined as a loop closure is, on the found key-frame's cloud.
+  void refine(const TrackedFeatures& frame, Relocalisation& found, FrameResult& result);
   [[nodiscard]] bool try_keyframe(int slot, const TrackedFeatures& frame, double threshold, Relocalisation& found,
                                   FrameResult& result);
 
   const SlamConfig& config_;
   const KeyframeStore& store_;
   Registrar& registrar_;
+  geometry::GeometricFrontend& geometric_;
   int cursor_ = 0;
   /// The latest frames' agreeing relocalisations; the last one's pose and key-frame.
   int agreeing_ = 0;

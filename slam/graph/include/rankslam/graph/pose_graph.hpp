@@ -134,6 +134,11 @@ class PoseGraph {
   /// is not a node.
   bool set_fixed(int id);
   [[nodiscard]] int fixed_node() const { return fixed_id_; }
+  /// Holds node id where it is in every optimisation, as the fixed node is (a loaded map's
+  /// key-frames: the map the new ones are placed in). Until the node is removed; not saved with
+  /// the graph. False when id is not a node.
+  bool hold(int id);
+  [[nodiscard]] bool held(int id) const;
 
   /// Overwrites a node's pose (e.g. with a background optimiser's result). False when id is not
   /// a node or the pose is not a finite rigid transform.
@@ -205,6 +210,7 @@ class PoseGraph {
   int fixed_id_ = -1;
   std::vector<Eigen::Isometry3d> T_world_node_;  // per slot
   std::vector<std::uint8_t> active_;             // per slot: 1 = a node
+  std::vector<std::uint8_t> held_;               // per slot: 1 = held where it is (hold())
   std::vector<std::uint32_t> generation_;        // per slot
   std::vector<std::uint64_t> added_order_;       // per slot: add_node() call number (key-frame order)
   std::uint64_t next_added_order_ = 0;
