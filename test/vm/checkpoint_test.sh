@@ -10,7 +10,7 @@
 #
 #   test/vm/checkpoint_test.sh RANKSLAM WORK_DIR
 #
-# WORK_DIR must be outside /tmp (the VM sees the host's root read-only, with its own /tmp).
+# The VM reads WORK_DIR (the host's root, read-only there) and writes only into its own TMPDIR.
 set -euo pipefail
 here="$(cd "$(dirname "${BASH_SOURCE[0]}")" && pwd)"
 rankslam="$1"
@@ -19,9 +19,15 @@ work="$2"
 rm -rf "$work"
 mkdir -p "$work"
 "$rankslam" simulate corridor-loop --frames 90 --out "$work/recording" > "$work/simulate.log"
-cat > "$work/robot.yaml" <<YAML
+# The VM's writable place is its TMPDIR (a tmpfs); /tmp may be the host's, read-only.
+cat > "$work/in-vm.sh" <<SH
+set -u
+out="\$RANKSLAM_VM_OUT"
+dir="\$TMPDIR/checkpoint"
+mkdir -p "\$dir/maps"
+cat > "\$dir/robot.yaml" <<YAML
 camera:
-  source: replay:recording
+  source: replay:$work/recording
   replay_rate: 0
   exit_after_end_s: -1
 can:
@@ -32,28 +38,23 @@ output:
 slam:
   keyframe_capacity: 32
 map:
-  file: /tmp/maps/map.rsm
+  file: \$dir/maps/map.rsm
   checkpoint_s: 0.5
 YAML
-
-cat > "$work/in-vm.sh" <<SH
-set -u
-out="\$RANKSLAM_VM_OUT"
-mkdir -p /tmp/maps
-"$rankslam" run --config "$work/robot.yaml" --mode baseline --out /tmp/out > "\$out/run-kill.log" 2>&1 &
+"$rankslam" run --config "\$dir/robot.yaml" --mode baseline --out "\$dir/out" > "\$out/run-kill.log" 2>&1 &
 run=\$!
 for i in \$(seq 1 600); do
-  [ -e /tmp/out/report.json ] && break
+  [ -e "\$dir/out/report.json" ] && break
   kill -0 \$run 2>/dev/null || break
   sleep 0.1
 done
 kill -KILL \$run
 wait \$run
 echo "exit \$?" > "\$out/run-kill.exit"
-ls -A /tmp/maps > "\$out/maps-kill.ls"
-cp /tmp/maps/map.rsm "\$out/map-kill.rsm"
-cp -L /tmp/out/trajectory.txt /tmp/out/report.json "\$out/" 2>/dev/null
-"$rankslam" run --config "$work/robot.yaml" --mode baseline --out /tmp/out > "\$out/run-term.log" 2>&1 &
+ls -A "\$dir/maps" > "\$out/maps-kill.ls"
+cp "\$dir/maps/map.rsm" "\$out/map-kill.rsm"
+cp -L "\$dir/out/trajectory.txt" "\$dir/out/report.json" "\$out/" 2>/dev/null
+"$rankslam" run --config "\$dir/robot.yaml" --mode baseline --out "\$dir/out" > "\$out/run-term.log" 2>&1 &
 run=\$!
 for i in \$(seq 1 600); do
   grep -q "end of stream" "\$out/run-term.log" && break
@@ -63,9 +64,9 @@ done
 kill -TERM \$run
 wait \$run
 echo "exit \$?" > "\$out/run-term.exit"
-ls -A /tmp/maps > "\$out/maps-term.ls"
-cp /tmp/maps/map.rsm "\$out/map-term.rsm"
-cp -L /tmp/out/report.json "\$out/report-term.json"
+ls -A "\$dir/maps" > "\$out/maps-term.ls"
+cp "\$dir/maps/map.rsm" "\$out/map-term.rsm"
+cp -L "\$dir/out/report.json" "\$out/report-term.json"
 SH
 set +e
 RANKSLAM_VM_FILES_TO="$work/files" "$here/run-in-vm.sh" /bin/sh "$work/in-vm.sh"
@@ -93,9 +94,9 @@ for line in text.splitlines():
     if not line.startswith("#"):
         assert len([float(f) for f in line.split()]) == 8, line
 PY
-grep -q "map loaded from /tmp/maps/map.rsm" "$files/run-term.log" || fail "the second run did not start in the map"
+grep -q "map loaded from .*/maps/map.rsm" "$files/run-term.log" || fail "the second run did not start in the map"
 grep -qx "exit 130" "$files/run-term.exit" || fail "the second run after SIGTERM: $(cat "$files/run-term.exit")"
-grep -q "map saved to /tmp/maps/map.rsm" "$files/run-term.log" || fail "the second run did not save the map at exit"
+grep -q "map saved to .*/maps/map.rsm" "$files/run-term.log" || fail "the second run did not save the map at exit"
 [ "$(cat "$files/maps-term.ls")" = map.rsm ] || fail "after SIGTERM the map directory holds: $(cat "$files/maps-term.ls")"
 loads "$files/map-term.rsm"
 grep -q '"checkpoints_written": [1-9]' "$files/report-term.json" || fail "the second run's report counts no checkpoint"
