@@ -650,19 +650,26 @@ MapFileInfo decode_map(std::span<const unsigned char> bytes, const std::string& 
   }
 }
 
+namespace {
+
+std::string write_map_bytes(const std::filesystem::path& path, const std::vector<unsigned char>& bytes) {
+  return hal::write_file_atomically(
+      path, std::span<const char>(reinterpret_cast<const char*>(bytes.data()), bytes.size()));
+}
+
+}  // namespace
+
 std::string save_map_file(const std::filesystem::path& path, const KeyframeStore& store, const graph::PoseGraph& graph,
                           const AdaptiveLoopThreshold& threshold, const MapDigests& digests) {
   std::vector<unsigned char> bytes;
   encode_map(store, graph, threshold, digests, bytes);
-  return hal::write_file_atomically(
-      path, std::span<const char>(reinterpret_cast<const char*>(bytes.data()), bytes.size()));
+  return write_map_bytes(path, bytes);
 }
 
 std::string save_map_file(const std::filesystem::path& path, const MapSnapshot& snapshot,
                           std::vector<unsigned char>& bytes) {
   encode_map(snapshot.store, snapshot.graph, snapshot.threshold, snapshot.digests, bytes);
-  return hal::write_file_atomically(
-      path, std::span<const char>(reinterpret_cast<const char*>(bytes.data()), bytes.size()));
+  return write_map_bytes(path, bytes);
 }
 
 MapFileInfo load_map_file(const std::filesystem::path& path, const MapDigests& expected, const MapContents& into) {
