@@ -275,7 +275,8 @@ class CreationWatch {
 class OutputSetTest : public ::testing::Test {
  protected:
   static void SetUpTestSuite() {
-    root_ = fresh_dir("rankslam_cli_output_sets");
+    // ctest runs each test as its own process, some at once: each needs its own folder.
+    root_ = fresh_dir("rankslam_cli_output_sets_" + std::to_string(::getpid()));
     recording_ = root_ / "recording";
     const auto simulated = run_to_end({"simulate", "office", "--out", recording_.string(), "--frames",
                                        std::to_string(kRecordingFrames)});
