@@ -136,7 +136,9 @@ void SlamLoop::relocalise(FrameResult& result) {
   // The path goes on from the key-frame found: drift allowances count from there.
   path_m_ = keyframe_store_.slot(found.slot).path_m;
   loop_closer_.set_relocalisation(keyframe_sequence_ + 1, path_m_);
-  backend_.restart_wheel_motion();
+  // The wheels measured nothing between the key-frame found (another time, or another run) and
+  // this frame: an edge from them would pull the next key-frame towards it.
+  backend_.forget_wheel_motion();
   in_map_ = true;
   failed_in_a_row_ = 0;
   ++relocalisations_;

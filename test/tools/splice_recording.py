@@ -6,8 +6,9 @@ later: a kidnapped robot (the camera jumps between two places), or a run that st
 
 OUT gets frames [START, END) of each SRC's associations.txt in turn (END empty: to the last), the
 first SRC's calibration.yaml, the ground truth of those frames on their new stamps and links to
-the images. Wheel log and fisheye stream are left out (a kidnap the wheels would not see). Prints
-the ground-truth distance of each jump between stretches, metres.
+the images. A single stretch (a run that starts elsewhere) keeps its wheel log's frames over its
+span, restamped; several leave it out (a kidnap the wheels would not see), as they do the fisheye
+stream. Prints the ground-truth distance of each jump between stretches, metres.
 """
 import math
 import os
@@ -18,6 +19,21 @@ import sys
 def read_rows(path):
     with open(path) as f:
         return [line.split() for line in f if line.strip() and not line.startswith("#")]
+
+
+def splice_can_log(src, out, begin_s, end_s, shift):
+    """The candump -l lines of SRC's can.log stamped within [begin_s, end_s], restamped by shift."""
+    path = os.path.join(src, "can.log")
+    if not os.path.exists(path):
+        return
+    with open(path) as f, open(os.path.join(out, "can.log"), "w") as log:
+        for line in f:
+            if not line.startswith("("):
+                continue
+            stamp_text, rest = line[1:].split(")", 1)
+            stamp = float(stamp_text)
+            if begin_s <= stamp <= end_s:
+                log.write(f"({stamp + shift:.6f}){rest}")
 
 
 def main():
@@ -68,6 +84,8 @@ def main():
                 os.symlink(os.path.join(src, row[1]), os.path.join(out, rgb))
                 os.symlink(os.path.join(src, row[3]), os.path.join(out, depth))
                 assoc.write(f"{rgb_stamp} {rgb} {depth_stamp} {depth}\n")
+            if len(stretches) == 1:
+                splice_can_log(src, out, begin_s - 0.05, end_s, shift)  # a wheel frame before the first image
             next_stamp = float(pairs[end - 1][0]) + shift + period
 
 

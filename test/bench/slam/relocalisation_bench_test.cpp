@@ -12,7 +12,9 @@
 
 #include <unistd.h>
 
+#include <algorithm>
 #include <chrono>
+#include <cmath>
 #include <cstdio>
 #include <filesystem>
 #include <string>
@@ -187,6 +189,92 @@ TEST(RelocalisationBench, AnotherSequenceOfTheRoomIsFoundWhereTheMotionCaptureIs
     // The alignment of a camera that mostly turns leaves centimetres across the room.
     EXPECT_LE(errors[i].translation_m, 0.10);
   }
+}
+
+/// The wheels' motion between two frames, as the base would report it: the ground truth's.
+nav::MotionPrior wheel_prior(const eval::Trajectory& ground_truth, double from_s, double to_s) {
+  const auto pose_at = [&](double stamp_s) {
+    const auto nearest = std::min_element(ground_truth.begin(), ground_truth.end(), [stamp_s](const auto& a, const auto& b) {
+      return std::abs(a.stamp_s - stamp_s) < std::abs(b.stamp_s - stamp_s);
+    });
+    return nearest->T_world_cam;
+  };
+  nav::MotionPrior prior;
+  prior.T_previous_current = pose_at(from_s).inverse() * pose_at(to_s);
+  prior.covariance.diagonal() << 1e-6, 1e-6, 1e-6, 1e-6, 1e-6, 1e-6;
+  return prior;
+}
+
+TEST(RelocalisationBench, WithWheelsTheFramesAfterARelocalisationStayWhereTheyWereFound) {
+  // A map of a simulated corridor's first 450 frames with wheels, then frames 300-449 started in
+  // it with wheels: found, and after the last solve every frame from the one found still where
+  // the ground truth is in the map's frame (the wheels saw nothing between the key-frame found and
+  // the frame found, so they must not pull the next key-frame towards it).
+  const fs::path directory = fs::temp_directory_path() / ("rankslam_bench_wheels_" + std::to_string(::getpid()));
+  fs::remove_all(directory);
+  sim::SimulationOptions options;
+  options.scene = "corridor-loop";
+  options.out_dir = directory;
+  options.frames = 450;
+  options.seed = 1;
+  ASSERT_EQ(sim::simulate_recording(options, nullptr), "");
+  replay::Recording recording;
+  std::vector<hal::RgbdFrame> frames = read_frames(directory, 0, 450, recording);
+  ASSERT_EQ(frames.size(), 450u);
+  ASSERT_TRUE(recording.calibration.wheels.has_value());
+  auto ground_truth = eval::read_tum_trajectory(*recording.ground_truth);
+  ASSERT_TRUE(ground_truth) << ground_truth.error();
+  const fs::path map = directory / "first.map";
+  eval::Trajectory first;
+  {
+    SlamLoop loop(SlamConfig{}, recording.calibration);
+    loop.set_synchronous_backend(true);
+    for (std::size_t i = 0; i < frames.size(); ++i) {
+      const nav::MotionPrior prior = wheel_prior(ground_truth.value(), frames[i == 0 ? 0 : i - 1].stamp_s, frames[i].stamp_s);
+      first.push_back({frames[i].stamp_s, loop.process(frames[i], i == 0 ? nullptr : &prior).T_world_cam});
+    }
+    loop.finish();
+    ASSERT_EQ(loop.save_map(map), "");
+  }
+  SlamLoop loop(SlamConfig{}, recording.calibration);
+  loop.set_synchronous_backend(true);
+  (void)loop.load_map(map);
+  std::vector<eval::RelocalisationRecord> after;  // every frame from the one found on
+  struct Link {
+    int node;
+    std::uint32_t generation;
+    Eigen::Isometry3d T_keyframe_cam;
+  };
+  std::vector<Link> links;
+  for (std::size_t i = 300; i < frames.size(); ++i) {
+    const nav::MotionPrior prior = wheel_prior(ground_truth.value(), frames[i - 1].stamp_s, frames[i].stamp_s);
+    const FrameResult result = loop.process(frames[i], i == 300 ? nullptr : &prior);
+    if (!result.relocalised && after.empty()) continue;
+    after.push_back({i, frames[i].stamp_s, result.T_world_cam, 0});
+    links.push_back({result.keyframe_node, result.keyframe_generation, result.T_keyframe_cam});
+  }
+  ASSERT_FALSE(after.empty()) << "frames 300-449 were not found in the map";
+  EXPECT_LT(after.front().frame, 300u + 30u);
+  loop.finish();
+  fs::remove_all(directory);
+  for (std::size_t i = 0; i < after.size(); ++i) {
+    ASSERT_TRUE(loop.optimized_pose(links[i].node, links[i].generation, links[i].T_keyframe_cam, after[i].T_world_cam));
+  }
+  // In the first run's frame: its own alignment to the ground truth.
+  auto ate = eval::compute_ate(ground_truth.value(), first);
+  ASSERT_TRUE(ate) << ate.error();
+  const std::vector<eval::RelocalisationError> errors =
+      eval::relocalisation_errors(ground_truth.value(), ate.value(), after, 0.02);
+  double worst_m = 0.0;
+  for (const eval::RelocalisationError& error : errors) {
+    ASSERT_TRUE(error.has_ground_truth);
+    worst_m = std::max(worst_m, error.translation_m);
+  }
+  std::printf("found at frame %llu; after the last solve the %zu frames from it are at most %.4f m off "
+              "(the first run's ATE %.4f m)\n",
+              static_cast<unsigned long long>(after.front().frame), after.size(), worst_m,
+              ate.value().translation_m.rmse);
+  EXPECT_LE(worst_m, 0.02);
 }
 
 TEST(RelocalisationBench, AnUnseenPlaceIsNotFoundInTheMap) {

@@ -36,6 +36,9 @@ class Backend {
                             const Eigen::Matrix<double, 6, 6>& information);
   /// Starts the wheel motion since the latest key-frame afresh (at a new key-frame).
   void restart_wheel_motion();
+  /// The wheels did not see the motion since the latest key-frame (a relocalisation chose another
+  /// one): the next key-frame has no wheel edge.
+  void forget_wheel_motion() { wheel_since_keyframe_valid_ = false; }
   /// The wheel motion of one frame since the previous (null: none; the wheel edge is then lost
   /// until the next key-frame).
   void accumulate_wheel_motion(const nav::MotionPrior* prior);
