@@ -83,6 +83,12 @@ void Relocaliser::refine(const TrackedFeatures& frame, Relocalisation& found, Fr
   }
 }
 
+bool Relocaliser::register_with(int slot, const TrackedFeatures& frame, double threshold, FrameResult& result,
+                                Relocalisation& found) {
+  return frame.photometric != nullptr && usable(slot, *frame.photometric) &&
+         try_keyframe(slot, frame, threshold, found, result);
+}
+
 bool Relocaliser::usable(int slot, const PhotometricFeatures& features) const {
   const StoredKeyframe& stored = store_.slot(slot);
   return stored.used && stored.node >= 0 && stored.photometric.source == features.source;

@@ -3,6 +3,7 @@
 #include "rankslam/core/lie.hpp"
 #include "rankslam/core/stopwatch.hpp"
 
+#include <cmath>
 #include <stdexcept>
 #include <string>
 
@@ -70,10 +71,20 @@ void SlamLoop::start_search() {
 void SlamLoop::relocalise(FrameResult& result) {
   failed_in_a_row_ = result.status == FrameStatus::kFailed ? failed_in_a_row_ + 1 : 0;
   const int after = config_.relocalisation.after_failed_frames;
+  // Image inliers against the tracking reference: a kidnapped robot in a place whose geometry
+  // looks alike (a plain corridor) still registers, but loses most of them in one frame.
+  const int image_inliers = result.photometric_matches > 0 ? result.photometric_inliers : result.inliers;
+  // With wheels a drop is left to the wheel/vision arbitration: in a plain corridor it also comes
+  // with turns and slips, where a search took stretches that look alike.
+  const bool image_inliers_dropped = result.status == FrameStatus::kTracking && !result.wheels.prior_given &&
+                                     last_image_inliers_ > 0 &&
+                                     image_inliers < config_.reference_min_overlap * last_image_inliers_;
+  last_image_inliers_ = result.status == FrameStatus::kTracking ? image_inliers : 0;
   if (!searching_) {
     // The search needs descriptors to rank key-frames with, and key-frames.
-    if (after == 0 || failed_in_a_row_ < after || keyframe_layout(config_).photometric_features == 0 ||
-        keyframe_store_.size() == 0) {
+    const bool failed = after > 0 && failed_in_a_row_ >= after;
+    if (!(failed || (after > 0 && in_map_ && image_inliers_dropped)) ||
+        keyframe_layout(config_).photometric_features == 0 || keyframe_store_.size() == 0) {
       return;
     }
     start_search();
@@ -85,29 +96,34 @@ void SlamLoop::relocalise(FrameResult& result) {
   // Outside the map's frame the pose tracking gives is not the map's.
   if (!in_map_) result.status = FrameStatus::kLost;
   ++searched_frames_;
-  // Frames tracked since the last failure of the search: from a pose the map did not give.
+  // A pose from registration, or from the wheels where it failed.
+  const bool posed = result.status == FrameStatus::kTracking || result.status == FrameStatus::kWheels;
+  // Frames posed since the last failure of the search: from a pose the map did not give.
   const int tracked_before = tracked_while_searching_;
-  tracked_while_searching_ = result.status == FrameStatus::kTracking ? tracked_while_searching_ + 1 : 0;
+  tracked_while_searching_ = posed ? tracked_while_searching_ + 1 : 0;
   Relocalisation found;
   if (!relocaliser_.search(tracker_->features(), loop_closer_.threshold(), result, found)) {
     // Tracking that went on after the failure without being found again within one sweep of the
     // store (and the confirmation) is on new ground: the search ends.
     const int sweep = (keyframe_store_.size() + config_.relocalisation.keyframes_per_frame - 1) /
                       config_.relocalisation.keyframes_per_frame;
-    if (in_map_ && result.status == FrameStatus::kTracking &&
-        searched_frames_ >= sweep + config_.relocalisation.confirm_frames) {
+    if (in_map_ && posed && searched_frames_ >= sweep + config_.relocalisation.confirm_frames) {
       searching_ = false;
     }
     return;
   }
   searching_ = false;
-  if (in_map_ && result.status == FrameStatus::kTracking) {
+  if (in_map_ && posed) {
     // Tracking went on after the failure: where the place found agrees with it within the drift
     // a loop closure may correct, tracking was right (the loop closure is the back-end's).
     const double travelled_m = path_m_ + (T_world_last_keyframe_.inverse() * result.T_world_cam).translation().norm() -
                                keyframe_store_.slot(found.slot).path_m;
     const Eigen::Isometry3d difference = result.T_world_cam.inverse() * found.T_world_cam;
     if (config_.loop.within_drift(difference.translation().norm(), lie::rotation_deg(difference), travelled_m)) return;
+    // A place that disagrees must be seen in the image (geometry alone cannot tell two stretches
+    // of a plain corridor apart) and explain the frame better than the map around the pose
+    // tracking gives does.
+    if (found.photometric_inliers < config_.min_inliers || tracking_explains_better(result, found)) return;
     // Otherwise tracking went on elsewhere than the map is (a kidnapped robot): its poses since
     // the failure are withdrawn and the key-frames it made retired. Failed frames keep their
     // extrapolated poses, reported as failed.
@@ -142,6 +158,49 @@ void SlamLoop::relocalise(FrameResult& result) {
   in_map_ = true;
   failed_in_a_row_ = 0;
   ++relocalisations_;
+}
+
+bool SlamLoop::tracking_explains_better(const FrameResult& result, const Relocalisation& found) {
+  // The key-frames made before the search that a loop closure would consider from tracking's
+  // pose, nearest first, as many as a searching frame registers.
+  const TrackedFeatures features = tracker_->features();
+  const double threshold = loop_closer_.threshold();
+  double last_m = -1.0;
+  int last_slot = -1;
+  for (int tried = 0; tried < config_.relocalisation.keyframes_per_frame; ++tried) {
+    int nearest = -1;
+    double nearest_m = 0.0;
+    for (int slot = 0; slot < keyframe_store_.capacity(); ++slot) {
+      const StoredKeyframe& keyframe = keyframe_store_.slot(slot);
+      if (!keyframe.used || keyframe.sequence > search_start_sequence_) continue;
+      const Eigen::Isometry3d relative = keyframe.T_world_cam.inverse() * result.T_world_cam;
+      const double distance_m = relative.translation().norm();
+      if (distance_m > config_.loop.search_radius_m || lie::rotation_deg(relative) > config_.loop.search_rotation_deg) {
+        continue;
+      }
+      // Strictly after the last one tried in (distance, slot) order.
+      if (distance_m < last_m || (distance_m == last_m && slot <= last_slot)) continue;
+      if (nearest < 0 || distance_m < nearest_m) {
+        nearest = slot;
+        nearest_m = distance_m;
+      }
+    }
+    if (nearest < 0) return false;
+    last_m = nearest_m;
+    last_slot = nearest;
+    FrameResult scratch;
+    Relocalisation held;
+    if (!relocaliser_.register_with(nearest, features, threshold, scratch, held)) continue;
+    const Eigen::Isometry3d difference = result.T_world_cam.inverse() * held.T_world_cam;
+    // Both are tracking's since that key-frame: they may differ by the drift over the path since.
+    const double travelled_m = std::abs(path_m_ + (T_world_last_keyframe_.inverse() * result.T_world_cam).translation().norm() -
+                                        keyframe_store_.slot(nearest).path_m);
+    if (held.inliers >= found.inliers &&
+        config_.loop.within_drift(difference.translation().norm(), lie::rotation_deg(difference), travelled_m)) {
+      return true;
+    }
+  }
+  return false;
 }
 
 void SlamLoop::finish_frame(const hal::RgbdFrame& frame, const nav::MotionPrior* prior, FrameResult& result) {

@@ -277,6 +277,59 @@ TEST(RelocalisationBench, WithWheelsTheFramesAfterARelocalisationStayWhereTheyWe
   EXPECT_LE(worst_m, 0.02);
 }
 
+TEST(RelocalisationBench, AKidnapAlongAPlainCorridorIsFoundThoughRegistrationGoesOn) {
+  // Frames 0-449 of a simulated corridor, then frames 100-249: the camera jumps 3.5 m back along
+  // the same corridor, whose walls and floor register as if it had not moved. No wheel motion.
+  const fs::path directory = fs::temp_directory_path() / ("rankslam_bench_corridor_" + std::to_string(::getpid()));
+  fs::remove_all(directory);
+  sim::SimulationOptions options;
+  options.scene = "corridor-loop";
+  options.out_dir = directory;
+  options.frames = 450;
+  options.seed = 1;
+  ASSERT_EQ(sim::simulate_recording(options, nullptr), "");
+  replay::Recording recording;
+  std::vector<hal::RgbdFrame> frames = read_frames(directory, 0, 450, recording);
+  ASSERT_EQ(frames.size(), 450u);
+  auto ground_truth = eval::read_tum_trajectory(*recording.ground_truth);
+  ASSERT_TRUE(ground_truth) << ground_truth.error();
+  std::vector<double> original_stamps;
+  for (const hal::RgbdFrame& frame : frames) original_stamps.push_back(frame.stamp_s);
+  const std::int64_t period_ns = frames[1].stamp_ns - frames[0].stamp_ns;
+  const double period_s = frames[1].stamp_s - frames[0].stamp_s;
+  for (int i = 100; i < 250; ++i) {
+    hal::RgbdFrame frame = copy_of(frames[static_cast<std::size_t>(i)]);
+    original_stamps.push_back(frame.stamp_s);
+    frame.stamp_ns = frames.back().stamp_ns + period_ns;
+    frame.stamp_s = frames.back().stamp_s + period_s;
+    frames.push_back(std::move(frame));
+  }
+  SlamConfig config;
+  config.mode = Mode::kFused;  // the geometry that holds registration on is the fused mode's
+  const SplicedRun run = run_spliced(config, recording.calibration, frames);
+  fs::remove_all(directory);
+  ASSERT_FALSE(run.relocalisations.empty()) << "the jump at frame 450 was not found";
+  // Errors against the ground truth of each frame's original stamp, through the alignment of the
+  // frames before the jump.
+  eval::Trajectory before;
+  for (const auto& pose : run.estimate) {
+    if (pose.stamp_s <= original_stamps[449] + 1e-6) before.push_back(pose);
+  }
+  auto ate = eval::compute_ate(ground_truth.value(), before);
+  ASSERT_TRUE(ate) << ate.error();
+  std::vector<eval::RelocalisationRecord> records = run.relocalisations;
+  for (auto& record : records) record.stamp_s = original_stamps[record.frame];
+  const std::vector<eval::RelocalisationError> errors =
+      eval::relocalisation_errors(ground_truth.value(), ate.value(), records, 0.02);
+  std::printf("found at frame %llu (jump at 450), %.4f m from the ground truth; %zu relocalisation(s)\n",
+              static_cast<unsigned long long>(run.relocalisations.front().frame), errors.front().translation_m,
+              run.relocalisations.size());
+  EXPECT_GE(run.relocalisations.front().frame, 450u);
+  EXPECT_LT(run.relocalisations.front().frame, 480u);
+  EXPECT_LE(errors.front().translation_m, 0.05);
+  for (const eval::RelocalisationError& error : errors) EXPECT_FALSE(eval::is_false_relocalisation(error));
+}
+
 TEST(RelocalisationBench, AnUnseenPlaceIsNotFoundInTheMap) {
   // A map of the simulated office, then frames of the poster wall, which it has never seen: the
   // search runs on each of them and must find none in the map.

@@ -174,7 +174,8 @@ struct LoopConfig {
 /// tracking was lost or in a loaded map. Keys `slam.relocalise_*`.
 struct RelocalisationConfig {
   // Failed registrations in a row that start a search of the whole map: a kidnapped robot fails
-  // once and then tracks on from the wrong pose, so one is enough. 0: never.
+  // once and then tracks on from the wrong pose, so one is enough. 0: never (neither after a drop
+  // of image inliers).
   int after_failed_frames = 1;
   // Stored key-frames the frame is registered with per frame while searching: bounds a searching
   // frame's cost (about 2 ms each); the whole store takes key-frames / this many frames.

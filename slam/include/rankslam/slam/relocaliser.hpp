@@ -38,6 +38,10 @@ class Relocaliser {
 
   /// Forgets a search under way (the next search ranks the store afresh).
   void reset();
+  /// Registers the frame against the stored key-frame in `slot` as the search does: true, with
+  /// `found`, when the key-frame is usable and the registration passes the search's checks.
+  [[nodiscard]] bool register_with(int slot, const TrackedFeatures& frame, double threshold, FrameResult& result,
+                                   Relocalisation& found);
   /// One frame of the search: true, with `found`, once the frame's relocalisation is confirmed.
   /// `threshold` is the loop closer's ε. Adds to `result`'s stage times and candidate count.
   [[nodiscard]] bool search(const TrackedFeatures& frame, double threshold, FrameResult& result,

@@ -112,12 +112,16 @@ class SlamLoop {
   /// the correction).
   void run_backend(FrameResult& result);
   /// Relocalisation (docs/methods.md §13): after relocalise_after_failed_frames failed frames
-  /// without wheels, or until a loaded map is found, the frame is searched for in the stored
-  /// key-frames. A place found where tracking went on elsewhere (a kidnapped robot) or failed
-  /// moves the pose there; in a loaded map not yet found the status is kLost.
+  /// without wheels, a sudden drop of image inliers without wheels, or until a loaded map is
+  /// found, the frame is searched for in the stored key-frames. A place found where tracking went
+  /// on elsewhere (a kidnapped robot) or failed moves the pose there; in a loaded map not yet
+  /// found the status is kLost.
   void relocalise(FrameResult& result);
   /// Starts a search of the store afresh.
   void start_search();
+  /// Whether the frame registered against a key-frame made before the search around tracking's
+  /// pose has at least `found`'s image inliers and agrees with tracking.
+  [[nodiscard]] bool tracking_explains_better(const FrameResult& result, const Relocalisation& found);
   /// Moves every pose the tracking holds by a world-frame correction.
   void correct_tracking(const Eigen::Isometry3d& correction);
 
@@ -140,6 +144,8 @@ class SlamLoop {
   std::unique_ptr<Tracker> tracker_;
   /// Consecutive frames whose registration failed without wheels.
   int failed_in_a_row_ = 0;
+  /// The last frame's image inliers against its tracking reference; 0 when it was not tracked.
+  int last_image_inliers_ = 0;
   /// Searching the stored key-frames (for searched_frames_ frames); `in_map_` false: the poses
   /// tracking gives are not in the map's frame (a loaded map not found yet).
   bool searching_ = false;
