@@ -191,6 +191,34 @@ TEST(RelocalisationBench, AnotherSequenceOfTheRoomIsFoundWhereTheMotionCaptureIs
   }
 }
 
+/// The first 450 frames of the simulated corridor loop (seed 1), read once, with its ground truth
+/// (empty where something failed); the recording's files are gone again.
+struct SimulatedCorridor {
+  replay::Recording recording;
+  std::vector<hal::RgbdFrame> frames;
+  eval::Trajectory ground_truth;
+};
+
+SimulatedCorridor simulated_corridor(const std::string& name) {
+  SimulatedCorridor corridor;
+  const fs::path directory = fs::temp_directory_path() / ("rankslam_bench_" + name + "_" + std::to_string(::getpid()));
+  fs::remove_all(directory);
+  sim::SimulationOptions options;
+  options.scene = "corridor-loop";
+  options.out_dir = directory;
+  options.frames = 450;
+  options.seed = 1;
+  EXPECT_EQ(sim::simulate_recording(options, nullptr), "");
+  corridor.frames = read_frames(directory, 0, 450, corridor.recording);
+  if (corridor.recording.ground_truth) {
+    auto ground_truth = eval::read_tum_trajectory(*corridor.recording.ground_truth);
+    EXPECT_TRUE(ground_truth) << ground_truth.error();
+    if (ground_truth) corridor.ground_truth = std::move(ground_truth).value();
+  }
+  fs::remove_all(directory);
+  return corridor;
+}
+
 /// The wheels' motion between two frames, as the base would report it: the ground truth's.
 nav::MotionPrior wheel_prior(const eval::Trajectory& ground_truth, double from_s, double to_s) {
   const auto pose_at = [&](double stamp_s) {
@@ -210,27 +238,20 @@ TEST(RelocalisationBench, WithWheelsTheFramesAfterARelocalisationStayWhereTheyWe
   // it with wheels: found, and after the last solve every frame from the one found still where
   // the ground truth is in the map's frame (the wheels saw nothing between the key-frame found and
   // the frame found, so they must not pull the next key-frame towards it).
-  const fs::path directory = fs::temp_directory_path() / ("rankslam_bench_wheels_" + std::to_string(::getpid()));
-  fs::remove_all(directory);
-  sim::SimulationOptions options;
-  options.scene = "corridor-loop";
-  options.out_dir = directory;
-  options.frames = 450;
-  options.seed = 1;
-  ASSERT_EQ(sim::simulate_recording(options, nullptr), "");
-  replay::Recording recording;
-  std::vector<hal::RgbdFrame> frames = read_frames(directory, 0, 450, recording);
+  SimulatedCorridor corridor = simulated_corridor("wheels");
+  std::vector<hal::RgbdFrame>& frames = corridor.frames;
+  const replay::Recording& recording = corridor.recording;
   ASSERT_EQ(frames.size(), 450u);
+  ASSERT_FALSE(corridor.ground_truth.empty());
   ASSERT_TRUE(recording.calibration.wheels.has_value());
-  auto ground_truth = eval::read_tum_trajectory(*recording.ground_truth);
-  ASSERT_TRUE(ground_truth) << ground_truth.error();
-  const fs::path map = directory / "first.map";
+  const eval::Trajectory& ground_truth = corridor.ground_truth;
+  const fs::path map = fs::temp_directory_path() / ("rankslam_bench_wheels_" + std::to_string(::getpid()) + ".map");
   eval::Trajectory first;
   {
     SlamLoop loop(SlamConfig{}, recording.calibration);
     loop.set_synchronous_backend(true);
     for (std::size_t i = 0; i < frames.size(); ++i) {
-      const nav::MotionPrior prior = wheel_prior(ground_truth.value(), frames[i == 0 ? 0 : i - 1].stamp_s, frames[i].stamp_s);
+      const nav::MotionPrior prior = wheel_prior(ground_truth, frames[i == 0 ? 0 : i - 1].stamp_s, frames[i].stamp_s);
       first.push_back({frames[i].stamp_s, loop.process(frames[i], i == 0 ? nullptr : &prior).T_world_cam});
     }
     loop.finish();
@@ -239,6 +260,7 @@ TEST(RelocalisationBench, WithWheelsTheFramesAfterARelocalisationStayWhereTheyWe
   SlamLoop loop(SlamConfig{}, recording.calibration);
   loop.set_synchronous_backend(true);
   (void)loop.load_map(map);
+  fs::remove(map);
   std::vector<eval::RelocalisationRecord> after;  // every frame from the one found on
   struct Link {
     int node;
@@ -247,7 +269,7 @@ TEST(RelocalisationBench, WithWheelsTheFramesAfterARelocalisationStayWhereTheyWe
   };
   std::vector<Link> links;
   for (std::size_t i = 300; i < frames.size(); ++i) {
-    const nav::MotionPrior prior = wheel_prior(ground_truth.value(), frames[i - 1].stamp_s, frames[i].stamp_s);
+    const nav::MotionPrior prior = wheel_prior(ground_truth, frames[i - 1].stamp_s, frames[i].stamp_s);
     const FrameResult result = loop.process(frames[i], i == 300 ? nullptr : &prior);
     if (!result.relocalised && after.empty()) continue;
     after.push_back({i, frames[i].stamp_s, result.T_world_cam, 0});
@@ -256,15 +278,14 @@ TEST(RelocalisationBench, WithWheelsTheFramesAfterARelocalisationStayWhereTheyWe
   ASSERT_FALSE(after.empty()) << "frames 300-449 were not found in the map";
   EXPECT_LT(after.front().frame, 300u + 30u);
   loop.finish();
-  fs::remove_all(directory);
   for (std::size_t i = 0; i < after.size(); ++i) {
     ASSERT_TRUE(loop.optimized_pose(links[i].node, links[i].generation, links[i].T_keyframe_cam, after[i].T_world_cam));
   }
   // In the first run's frame: its own alignment to the ground truth.
-  auto ate = eval::compute_ate(ground_truth.value(), first);
+  auto ate = eval::compute_ate(ground_truth, first);
   ASSERT_TRUE(ate) << ate.error();
   const std::vector<eval::RelocalisationError> errors =
-      eval::relocalisation_errors(ground_truth.value(), ate.value(), after, 0.02);
+      eval::relocalisation_errors(ground_truth, ate.value(), after, 0.02);
   double worst_m = 0.0;
   for (const eval::RelocalisationError& error : errors) {
     ASSERT_TRUE(error.has_ground_truth);
@@ -280,19 +301,11 @@ TEST(RelocalisationBench, WithWheelsTheFramesAfterARelocalisationStayWhereTheyWe
 TEST(RelocalisationBench, AKidnapAlongAPlainCorridorIsFoundThoughRegistrationGoesOn) {
   // Frames 0-449 of a simulated corridor, then frames 100-249: the camera jumps 3.5 m back along
   // the same corridor, whose walls and floor register as if it had not moved. No wheel motion.
-  const fs::path directory = fs::temp_directory_path() / ("rankslam_bench_corridor_" + std::to_string(::getpid()));
-  fs::remove_all(directory);
-  sim::SimulationOptions options;
-  options.scene = "corridor-loop";
-  options.out_dir = directory;
-  options.frames = 450;
-  options.seed = 1;
-  ASSERT_EQ(sim::simulate_recording(options, nullptr), "");
-  replay::Recording recording;
-  std::vector<hal::RgbdFrame> frames = read_frames(directory, 0, 450, recording);
+  SimulatedCorridor corridor = simulated_corridor("corridor");
+  std::vector<hal::RgbdFrame>& frames = corridor.frames;
   ASSERT_EQ(frames.size(), 450u);
-  auto ground_truth = eval::read_tum_trajectory(*recording.ground_truth);
-  ASSERT_TRUE(ground_truth) << ground_truth.error();
+  ASSERT_FALSE(corridor.ground_truth.empty());
+  const eval::Trajectory& ground_truth = corridor.ground_truth;
   std::vector<double> original_stamps;
   for (const hal::RgbdFrame& frame : frames) original_stamps.push_back(frame.stamp_s);
   const std::int64_t period_ns = frames[1].stamp_ns - frames[0].stamp_ns;
@@ -306,8 +319,7 @@ TEST(RelocalisationBench, AKidnapAlongAPlainCorridorIsFoundThoughRegistrationGoe
   }
   SlamConfig config;
   config.mode = Mode::kFused;  // the geometry that holds registration on is the fused mode's
-  const SplicedRun run = run_spliced(config, recording.calibration, frames);
-  fs::remove_all(directory);
+  const SplicedRun run = run_spliced(config, corridor.recording.calibration, frames);
   ASSERT_FALSE(run.relocalisations.empty()) << "the jump at frame 450 was not found";
   // Errors against the ground truth of each frame's original stamp, through the alignment of the
   // frames before the jump.
@@ -315,12 +327,12 @@ TEST(RelocalisationBench, AKidnapAlongAPlainCorridorIsFoundThoughRegistrationGoe
   for (const auto& pose : run.estimate) {
     if (pose.stamp_s <= original_stamps[449] + 1e-6) before.push_back(pose);
   }
-  auto ate = eval::compute_ate(ground_truth.value(), before);
+  auto ate = eval::compute_ate(ground_truth, before);
   ASSERT_TRUE(ate) << ate.error();
   std::vector<eval::RelocalisationRecord> records = run.relocalisations;
   for (auto& record : records) record.stamp_s = original_stamps[record.frame];
   const std::vector<eval::RelocalisationError> errors =
-      eval::relocalisation_errors(ground_truth.value(), ate.value(), records, 0.02);
+      eval::relocalisation_errors(ground_truth, ate.value(), records, 0.02);
   std::printf("found at frame %llu (jump at 450), %.4f m from the ground truth; %zu relocalisation(s)\n",
               static_cast<unsigned long long>(run.relocalisations.front().frame), errors.front().translation_m,
               run.relocalisations.size());
