@@ -116,8 +116,7 @@ void SlamLoop::relocalise(FrameResult& result) {
   if (in_map_ && posed) {
     // Tracking went on after the failure: where the place found agrees with it within the drift
     // a loop closure may correct, tracking was right (the loop closure is the back-end's).
-    const double travelled_m = path_m_ + (T_world_last_keyframe_.inverse() * result.T_world_cam).translation().norm() -
-                               keyframe_store_.slot(found.slot).path_m;
+    const double travelled_m = path_since(found.slot, result.T_world_cam);
     const Eigen::Isometry3d difference = result.T_world_cam.inverse() * found.T_world_cam;
     if (config_.loop.within_drift(difference.translation().norm(), lie::rotation_deg(difference), travelled_m)) return;
     // A place that disagrees must be seen in the image (geometry alone cannot tell two stretches
@@ -160,6 +159,10 @@ void SlamLoop::relocalise(FrameResult& result) {
   ++relocalisations_;
 }
 
+double SlamLoop::path_since(int slot, const Eigen::Isometry3d& T_world_cam) const {
+  return path_m_ + (T_world_last_keyframe_.inverse() * T_world_cam).translation().norm() - keyframe_store_.slot(slot).path_m;
+}
+
 bool SlamLoop::tracking_explains_better(const FrameResult& result, const Relocalisation& found) {
   // The key-frames made before the search that a loop closure would consider from tracking's
   // pose, nearest first, as many as a searching frame registers.
@@ -193,8 +196,7 @@ bool SlamLoop::tracking_explains_better(const FrameResult& result, const Relocal
     if (!relocaliser_.register_with(nearest, features, threshold, scratch, held)) continue;
     const Eigen::Isometry3d difference = result.T_world_cam.inverse() * held.T_world_cam;
     // Both are tracking's since that key-frame: they may differ by the drift over the path since.
-    const double travelled_m = std::abs(path_m_ + (T_world_last_keyframe_.inverse() * result.T_world_cam).translation().norm() -
-                                        keyframe_store_.slot(nearest).path_m);
+    const double travelled_m = std::abs(path_since(nearest, result.T_world_cam));
     if (held.inliers >= found.inliers &&
         config_.loop.within_drift(difference.translation().norm(), lie::rotation_deg(difference), travelled_m)) {
       return true;

@@ -120,8 +120,11 @@ class SlamLoop {
   /// Starts a search of the store afresh.
   void start_search();
   /// Whether the frame registered against a key-frame made before the search around tracking's
-  /// pose has at least `found`'s image inliers and agrees with tracking.
+  /// pose has at least `found`'s inliers and agrees with tracking.
   [[nodiscard]] bool tracking_explains_better(const FrameResult& result, const Relocalisation& found);
+  /// The path from the stored key-frame in `slot` to a frame at `T_world_cam` (through the latest
+  /// key-frame); the drift allowances count it.
+  [[nodiscard]] double path_since(int slot, const Eigen::Isometry3d& T_world_cam) const;
   /// Moves every pose the tracking holds by a world-frame correction.
   void correct_tracking(const Eigen::Isometry3d& correction);
 
