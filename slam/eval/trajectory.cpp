@@ -128,7 +128,8 @@ Result<Trajectory> read_tum_trajectory(const std::filesystem::path& path) {
 std::string format_tum_trajectory(const Trajectory& trajectory) {
   std::string text = "# timestamp tx ty tz qx qy qz qw\n";
   text.reserve(text.size() + trajectory.size() * 96);
-  std::array<char, 256> line{};
+  // Longer than any line of finite values: "%.6f" of -DBL_MAX is 317 characters, "%.9g" at most 16.
+  std::array<char, 512> line{};
   for (const StampedPose& pose : trajectory) {
     Eigen::Quaterniond q(pose.T_world_cam.linear());
     q.normalize();

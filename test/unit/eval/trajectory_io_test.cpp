@@ -149,6 +149,17 @@ TEST(TumTrajectoryWrite, FormatHasHeaderAndSixDecimalStamps) {
             "# timestamp tx ty tz qx qy qz qw\n12.500000 0 0 0 0 0 0 1\n");
 }
 
+TEST(TumTrajectoryWrite, ExtremeFiniteValuesKeepEveryLineWhole) {
+  const double big = std::numeric_limits<double>::max();
+  Trajectory trajectory = {{-big, test::make_pose({-big, big, -1e-300}, Eigen::Quaterniond::Identity())},
+                           {1.0, Eigen::Isometry3d::Identity()}};
+  const Result<Trajectory> read = parse_tum_trajectory(format_tum_trajectory(trajectory), "extreme");
+  ASSERT_TRUE(read.ok()) << read.error();
+  ASSERT_EQ(read.value().size(), 2U);
+  EXPECT_EQ(read.value()[0].stamp_s, -big);
+  EXPECT_EQ(read.value()[1].stamp_s, 1.0);
+}
+
 TEST(TumTrajectoryWrite, RefusesNonFinitePoseAndNamesIt) {
   Trajectory trajectory = test::helix(0.0, 1.0, 10.0);
   trajectory[4].T_world_cam.translation().y() = std::numeric_limits<double>::quiet_NaN();
