@@ -80,13 +80,18 @@ void SlamLoop::relocalise(FrameResult& result) {
                                      last_image_inliers_ > 0 &&
                                      image_inliers < config_.reference_min_overlap * last_image_inliers_;
   last_image_inliers_ = result.status == FrameStatus::kTracking ? image_inliers : 0;
+  const bool searchable = after > 0 && keyframe_layout(config_).photometric_features > 0 && keyframe_store_.size() > 0;
+  // A drop from an image that held the pose (a plain wall's few features come and go) puts the
+  // frame's pose in doubt, the camera may have been carried off: lost unless the search finds it,
+  // or finds tracking right.
+  const bool doubted = searchable && in_map_ && image_inliers_dropped &&
+                       last_photometric_inliers_ >= config_.min_inliers &&
+                       result.photometric_inliers < config_.reference_min_overlap * last_photometric_inliers_;
+  last_photometric_inliers_ = result.status == FrameStatus::kTracking ? result.photometric_inliers : 0;
   if (!searching_) {
     // The search needs descriptors to rank key-frames with, and key-frames.
     const bool failed = after > 0 && failed_in_a_row_ >= after;
-    if (!(failed || (after > 0 && in_map_ && image_inliers_dropped)) ||
-        keyframe_layout(config_).photometric_features == 0 || keyframe_store_.size() == 0) {
-      return;
-    }
+    if (!searchable || !(failed || doubted)) return;
     start_search();
   }
   if (in_map_ && result.resumed) {
@@ -100,7 +105,7 @@ void SlamLoop::relocalise(FrameResult& result) {
   const bool posed = result.status == FrameStatus::kTracking || result.status == FrameStatus::kWheels;
   // Frames posed since the last failure of the search: from a pose the map did not give.
   const int tracked_before = tracked_while_searching_;
-  tracked_while_searching_ = posed ? tracked_while_searching_ + 1 : 0;
+  tracked_while_searching_ = posed ? tracked_while_searching_ + (doubted ? 0 : 1) : 0;
   Relocalisation found;
   if (!relocaliser_.search(tracker_->features(), loop_closer_.threshold(), result, found)) {
     // Tracking that went on after the failure without being found again within one sweep of the
@@ -110,6 +115,7 @@ void SlamLoop::relocalise(FrameResult& result) {
     if (in_map_ && posed && searched_frames_ >= sweep + config_.relocalisation.confirm_frames) {
       searching_ = false;
     }
+    if (doubted && !tracking_registers(result, 0, config_.min_inliers)) result.status = FrameStatus::kLost;
     return;
   }
   searching_ = false;
@@ -122,7 +128,11 @@ void SlamLoop::relocalise(FrameResult& result) {
     // A place that disagrees must be seen in the image (geometry alone cannot tell two stretches
     // of a plain corridor apart) and explain the frame better than the map around the pose
     // tracking gives does.
-    if (found.photometric_inliers < config_.min_inliers || tracking_explains_better(result, found)) return;
+    if (found.photometric_inliers < config_.min_inliers) {
+      if (doubted && !tracking_registers(result, 0, config_.min_inliers)) result.status = FrameStatus::kLost;
+      return;
+    }
+    if (tracking_registers(result, found.inliers, 0)) return;
     // Otherwise tracking went on elsewhere than the map is (a kidnapped robot): its poses since
     // the failure are withdrawn and the key-frames it made retired. Failed frames keep their
     // extrapolated poses, reported as failed.
@@ -163,7 +173,7 @@ double SlamLoop::path_since(int slot, const Eigen::Isometry3d& T_world_cam) cons
   return path_m_ + (T_world_last_keyframe_.inverse() * T_world_cam).translation().norm() - keyframe_store_.slot(slot).path_m;
 }
 
-bool SlamLoop::tracking_explains_better(const FrameResult& result, const Relocalisation& found) {
+bool SlamLoop::tracking_registers(const FrameResult& result, int min_inliers, int min_photometric_inliers) {
   // The key-frames made before the search that a loop closure would consider from tracking's
   // pose, nearest first, as many as a searching frame registers.
   const TrackedFeatures features = tracker_->features();
@@ -197,7 +207,7 @@ bool SlamLoop::tracking_explains_better(const FrameResult& result, const Relocal
     const Eigen::Isometry3d difference = result.T_world_cam.inverse() * held.T_world_cam;
     // Both are tracking's since that key-frame: they may differ by the drift over the path since.
     const double travelled_m = std::abs(path_since(nearest, result.T_world_cam));
-    if (held.inliers >= found.inliers &&
+    if (held.inliers >= min_inliers && held.photometric_inliers >= min_photometric_inliers &&
         config_.loop.within_drift(difference.translation().norm(), lie::rotation_deg(difference), travelled_m)) {
       return true;
     }

@@ -53,6 +53,7 @@ std::vector<hal::RgbdFrame> read_frames(const fs::path& dir, int begin, int end,
 struct SplicedRun {
   eval::Trajectory estimate;  ///< as FramePipeline keeps it: no lost or withdrawn frames
   std::vector<eval::RelocalisationRecord> relocalisations;
+  std::vector<FrameStatus> statuses;  ///< every frame's
   int failed = 0;
 };
 
@@ -71,6 +72,7 @@ SplicedRun run_spliced(const SlamConfig& config, const hal::Calibration& calibra
     }
     if (result.status == FrameStatus::kFailed || result.status == FrameStatus::kLost) ++run.failed;
     if (result.status != FrameStatus::kLost) run.estimate.push_back({frame.stamp_s, result.T_world_cam});
+    run.statuses.push_back(result.status);
     ++index;
   }
   return run;
@@ -333,9 +335,12 @@ TEST(RelocalisationBench, AKidnapAlongAPlainCorridorIsFoundThoughRegistrationGoe
   for (auto& record : records) record.stamp_s = original_stamps[record.frame];
   const std::vector<eval::RelocalisationError> errors =
       eval::relocalisation_errors(ground_truth, ate.value(), records, 0.02);
-  std::printf("found at frame %llu (jump at 450), %.4f m from the ground truth; %zu relocalisation(s)\n",
-              static_cast<unsigned long long>(run.relocalisations.front().frame), errors.front().translation_m,
+  std::printf("found at frame %llu (jump at 450, %s there), %.4f m from the ground truth; %zu relocalisation(s)\n",
+              static_cast<unsigned long long>(run.relocalisations.front().frame),
+              std::string(to_string(run.statuses[450])).c_str(), errors.front().translation_m,
               run.relocalisations.size());
+  // The pose at the jump is in doubt until the search has found the place: not sent as tracked.
+  EXPECT_TRUE(run.relocalisations.front().frame == 450u || run.statuses[450] == FrameStatus::kLost);
   EXPECT_GE(run.relocalisations.front().frame, 450u);
   EXPECT_LT(run.relocalisations.front().frame, 480u);
   EXPECT_LE(errors.front().translation_m, 0.05);

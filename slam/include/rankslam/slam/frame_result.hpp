@@ -19,8 +19,9 @@ enum class FrameStatus : std::uint8_t {
   kTracking,    ///< Registered against the tracking key-frame or, failing that, the previous frame.
   kFailed,      ///< Registration failed, no wheel prior: the pose was propagated at constant velocity.
   kWheels,      ///< Registration failed or was overruled: the pose follows the wheel odometry prior.
-  /// Tracking lost (or a loaded map not yet found), no wheel prior: the pose is unknown while the
-  /// loop searches the stored key-frames (docs/methods.md §13).
+  /// Tracking lost, a sudden drop of image inliers the search did not explain (the camera may
+  /// have been carried off) or a loaded map not yet found, no wheel prior: the pose is unknown
+  /// while the loop searches the stored key-frames (docs/methods.md §13).
   kLost,
 };
 

@@ -115,13 +115,13 @@ class SlamLoop {
   /// without wheels, a sudden drop of image inliers without wheels, or until a loaded map is
   /// found, the frame is searched for in the stored key-frames. A place found where tracking went
   /// on elsewhere (a kidnapped robot) or failed moves the pose there; in a loaded map not yet
-  /// found the status is kLost.
+  /// found, and on a drop neither found nor explained by tracking, the status is kLost.
   void relocalise(FrameResult& result);
   /// Starts a search of the store afresh.
   void start_search();
-  /// Whether the frame registered against a key-frame made before the search around tracking's
-  /// pose has at least `found`'s inliers and agrees with tracking.
-  [[nodiscard]] bool tracking_explains_better(const FrameResult& result, const Relocalisation& found);
+  /// Whether the frame registers against a key-frame made before the search around tracking's
+  /// pose with at least these inliers (all, and photometric) and agrees with tracking.
+  [[nodiscard]] bool tracking_registers(const FrameResult& result, int min_inliers, int min_photometric_inliers);
   /// The path from the stored key-frame in `slot` to a frame at `T_world_cam` (through the latest
   /// key-frame); the drift allowances count it.
   [[nodiscard]] double path_since(int slot, const Eigen::Isometry3d& T_world_cam) const;
@@ -149,6 +149,8 @@ class SlamLoop {
   int failed_in_a_row_ = 0;
   /// The last frame's image inliers against its tracking reference; 0 when it was not tracked.
   int last_image_inliers_ = 0;
+  /// The previous frame's photometric inliers (0 unless it was tracked).
+  int last_photometric_inliers_ = 0;
   /// Searching the stored key-frames (for searched_frames_ frames); `in_map_` false: the poses
   /// tracking gives are not in the map's frame (a loaded map not found yet).
   bool searching_ = false;
