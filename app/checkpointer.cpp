@@ -56,6 +56,11 @@ Checkpointer::Counters Checkpointer::counters() const {
   return counters_;
 }
 
+Checkpointer::Tally Checkpointer::tally() const {
+  const std::lock_guard lock(mutex_);
+  return {counters_.written, counters_.failed};
+}
+
 void Checkpointer::write_loop() {
   // Below the loop's priority: a checkpoint takes what the SLAM leaves of the CPU.
   (void)::setpriority(PRIO_PROCESS, static_cast<id_t>(::gettid()), 10);

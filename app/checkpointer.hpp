@@ -44,6 +44,11 @@ class Checkpointer {
     double last_write_ms = 0.0;
     std::string last_error;
   };
+  /// The counts alone: read without allocating, from the loop's thread.
+  struct Tally {
+    std::uint64_t written = 0;
+    std::uint64_t failed = 0;
+  };
 
   /// Set-up (allocates the copies; starts the writer). `max_poses`: the pipeline's trajectory
   /// capacity.
@@ -59,6 +64,7 @@ class Checkpointer {
   /// Waits for the write under way, if any, and ends the writer; offer() then does nothing.
   void stop();
   [[nodiscard]] Counters counters() const;
+  [[nodiscard]] Tally tally() const;
 
  private:
   void write_loop();

@@ -21,6 +21,12 @@ bool run_live_loop(const LiveLoopParts& parts, const std::function<bool()>& stop
   const auto update_totals = [&] {
     totals.counts = pipeline.status_counts();
     totals.keyframes = pipeline.loop().keyframes();
+    if (parts.checkpointer != nullptr) {
+      const Checkpointer::Tally tally = parts.checkpointer->tally();
+      totals.checkpoints = true;
+      totals.checkpoints_written = tally.written;
+      totals.checkpoints_failed = tally.failed;
+    }
   };
   update_totals();
   if (parts.status_line != nullptr) parts.status_line->start(clock.now_ns(), totals);

@@ -38,12 +38,20 @@ bool StatusLine::tick(std::int64_t now_ns, const StatusTotals& totals) {
   const int tracking = totals.counts.tracking - last_.counts.tracking;
   const int degraded = totals.counts.degraded - last_.counts.degraded;
   const int lost = totals.counts.lost - last_.counts.lost;
-  const int written = std::snprintf(
+  int written = std::snprintf(
       line_, sizeof line_,
       "status: last %.0f s: %.1f frames/s, TRACKING %d, DEGRADED %d, LOST %d, camera reads without a frame %llu; "
       "key-frames %d, RSS %.0f MB",
       seconds, static_cast<double>(tracking + degraded + lost) / seconds, tracking, degraded, lost,
       static_cast<unsigned long long>(totals.empty_reads - last_.empty_reads), totals.keyframes, resident_mb());
+  if (totals.checkpoints && written > 0 && static_cast<std::size_t>(written) < sizeof line_) {
+    // A disk that fills or fails shows in the journal while the run goes on, not only at exit.
+    const int more = std::snprintf(
+        line_ + written, sizeof line_ - static_cast<std::size_t>(written), ", checkpoints written %llu, failed %llu",
+        static_cast<unsigned long long>(totals.checkpoints_written - last_.checkpoints_written),
+        static_cast<unsigned long long>(totals.checkpoints_failed - last_.checkpoints_failed));
+    if (more > 0) written += more;
+  }
   length_ = written < 0 ? 0 : std::min(static_cast<std::size_t>(written), sizeof line_ - 2);
   line_[length_] = '\n';
   // One write per line, so lines from other threads do not interleave with it; a short or failed

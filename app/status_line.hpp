@@ -13,11 +13,14 @@ struct StatusTotals {
   eval::StatusCounts counts;       ///< Frames by status (TRACKING, DEGRADED, LOST).
   std::uint64_t empty_reads = 0;   ///< Camera reads that brought no frame (timeout, fault).
   int keyframes = 0;
+  bool checkpoints = false;              ///< Checkpoints are on: the line shows theirs.
+  std::uint64_t checkpoints_written = 0;
+  std::uint64_t checkpoints_failed = 0;
 };
 
 /// The journal's view of `rankslam run`: every `interval_ns` one line on `fd` (stderr) with the
 /// frame rate, the frames by status and the camera reads without a frame over the interval,
-/// the key-frames and the resident memory. Called from the SLAM loop's thread (never from the
+/// the key-frames and the resident memory, and with checkpoints those written and failed. Called from the SLAM loop's thread (never from the
 /// pose output's real-time one); formats into a fixed buffer and writes with write(2): no
 /// allocation, and a turn without a line is one compare.
 class StatusLine {

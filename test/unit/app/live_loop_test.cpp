@@ -32,6 +32,7 @@
 #include <iostream>
 #include <sstream>
 #include <mutex>
+#include <regex>
 #include <string>
 #include <thread>
 
@@ -185,6 +186,9 @@ TEST_F(LiveLoopTest, WatchdogFollowsTheLoopNotTheCamera) {
   int status_pipe[2];
   ASSERT_EQ(::pipe2(status_pipe, O_CLOEXEC | O_NONBLOCK), 0);
   StatusLine status_line(100'000'000, status_pipe[1]);
+  // Every checkpoint fails (a full disk): the status line says so while the loop goes on.
+  Checkpointer checkpointer(pipeline.loop(), pipeline_options.max_frames, 0.0,
+                            [](const CheckpointContents&) { return std::string("map.rsm: No space left on device"); });
 
   LiveLoopParts parts;
   parts.camera = &camera;
@@ -194,6 +198,7 @@ TEST_F(LiveLoopTest, WatchdogFollowsTheLoopNotTheCamera) {
   parts.exit_after_end_s = -1.0;
   parts.notifier = &notifier;
   parts.status_line = &status_line;
+  parts.checkpointer = &checkpointer;
   std::atomic<bool> stop{false};
   bool interrupted = false;
   std::thread loop([&] { interrupted = run_live_loop(parts, [&] { return stop.load(); }); });
@@ -246,7 +251,11 @@ TEST_F(LiveLoopTest, WatchdogFollowsTheLoopNotTheCamera) {
   EXPECT_NE(lines.find("frames/s, TRACKING "), std::string::npos) << lines;
   EXPECT_NE(lines.find(", LOST "), std::string::npos) << lines;
   EXPECT_NE(lines.find("camera reads without a frame "), std::string::npos) << lines;
-  EXPECT_NE(lines.find(" MB\n"), std::string::npos) << lines;
+  EXPECT_NE(lines.find(" MB, checkpoints written 0, failed "), std::string::npos) << lines;
+  EXPECT_TRUE(std::regex_search(lines, std::regex("checkpoints written 0, failed [1-9][0-9]*\n"))) << lines;
+  checkpointer.stop();
+  EXPECT_GT(checkpointer.counters().failed, 0U);
+  EXPECT_EQ(checkpointer.counters().written, 0U);
   camera.close();
 }
 
@@ -424,6 +433,28 @@ TEST(StatusLine, OneLinePerIntervalWithTheChangeSinceTheLastAndNoAllocation) {
   ASSERT_GT(n, 0);
   EXPECT_EQ(std::string(written, static_cast<std::size_t>(n)), text + "\n");
   EXPECT_GT(resident_mb(), 1.0);
+  ::close(fds[0]);
+  ::close(fds[1]);
+}
+
+TEST(StatusLine, WithCheckpointsCountsThoseWrittenAndFailedOverTheInterval) {
+  int fds[2];
+  ASSERT_EQ(::pipe2(fds, O_CLOEXEC | O_NONBLOCK), 0);
+  StatusLine line(60'000'000'000, fds[1]);
+  StatusTotals totals;
+  totals.checkpoints = true;
+  totals.checkpoints_written = 5;
+  totals.checkpoints_failed = 1;
+  line.start(0, totals);
+  totals.counts.tracking = 1800;
+  totals.checkpoints_written = 6;
+  totals.checkpoints_failed = 2;
+  test_support::CountAllocations count;
+  EXPECT_TRUE(line.tick(60'000'000'000, totals));
+  EXPECT_EQ(count.this_thread_allocations(), 0);
+  const std::string text(line.last_line());
+  EXPECT_NE(text.find(" MB, checkpoints written 1, failed 1"), std::string::npos) << text;
+  EXPECT_EQ(text.back(), '1') << text;
   ::close(fds[0]);
   ::close(fds[1]);
 }
