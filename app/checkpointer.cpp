@@ -4,9 +4,25 @@
 #include "rankslam/hal/file_set.hpp"
 
 #include <sys/resource.h>
+#include <sys/stat.h>
 #include <unistd.h>
 
+#include <span>
+
 namespace rankslam::app {
+namespace {
+
+/// FNV-1a over the bytes: tells one map encoding from another (not a defence against forgery).
+std::uint64_t fnv1a(std::span<const unsigned char> bytes) {
+  std::uint64_t hash = 14695981039346656037ULL;
+  for (const unsigned char byte : bytes) {
+    hash ^= byte;
+    hash *= 1099511628211ULL;
+  }
+  return hash;
+}
+
+}  // namespace
 
 Checkpointer::Checkpointer(const slam::SlamLoop& loop, std::size_t max_poses, double interval_s, Writer write)
     : map_(loop.make_map_snapshot()),
@@ -97,7 +113,24 @@ CheckpointWriter::CheckpointWriter(const slam::SlamConfig& config, const hal::Ca
 
 std::string CheckpointWriter::operator()(const CheckpointContents& contents) {
   std::string error;
-  if (!map_file_.empty()) error = slam::save_map_file(map_file_, contents.map, bytes_);
+  if (!map_file_.empty()) {
+    slam::encode_map(contents.map.store, contents.map.graph, contents.map.threshold, contents.map.digests, bytes_);
+    const std::uint64_t hash = fnv1a(bytes_);
+    struct stat status {};
+    // The same file as last written (not moved away or replaced) with the same bytes.
+    const bool unchanged = written_map_ && written_map_->hash == hash && written_map_->size == bytes_.size() &&
+                           ::stat(map_file_.c_str(), &status) == 0 && written_map_->device == status.st_dev &&
+                           written_map_->inode == status.st_ino &&
+                           static_cast<std::uint64_t>(status.st_size) == bytes_.size();
+    if (!unchanged) {
+      written_map_.reset();
+      error = slam::write_map_bytes(map_file_, bytes_);
+      if (error.empty() && ::stat(map_file_.c_str(), &status) == 0) {
+        written_map_ = WrittenMap{hash, bytes_.size(), static_cast<std::uint64_t>(status.st_dev),
+                                  static_cast<std::uint64_t>(status.st_ino)};
+      }
+    }
+  }
   map_builder_.rebuild(contents.map.store);
   hal::FileSet set(out_dir_);
   std::string set_error = set.add_written("trajectory.txt", [&](const std::filesystem::path& path) {

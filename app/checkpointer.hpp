@@ -14,6 +14,7 @@
 #include <functional>
 #include <memory>
 #include <mutex>
+#include <optional>
 #include <string>
 #include <thread>
 #include <vector>
@@ -107,6 +108,16 @@ class CheckpointWriter {
   std::string software_version_;
   /// The map file's bytes: grows with the map, kept between checkpoints.
   std::vector<unsigned char> bytes_;
+  /// The map file this writer last wrote: a checkpoint with the same bytes while that file is
+  /// still in place leaves it alone (a robot standing still would otherwise rewrite the whole map,
+  /// up to a hundred MiB, every interval onto its flash).
+  struct WrittenMap {
+    std::uint64_t hash = 0;
+    std::uint64_t size = 0;
+    std::uint64_t device = 0;
+    std::uint64_t inode = 0;
+  };
+  std::optional<WrittenMap> written_map_;
 };
 
 }  // namespace rankslam::app

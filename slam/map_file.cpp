@@ -652,12 +652,12 @@ MapFileInfo decode_map(std::span<const unsigned char> bytes, const std::string& 
 
 namespace {
 
-std::string write_map_bytes(const std::filesystem::path& path, const std::vector<unsigned char>& bytes) {
-  return hal::write_file_atomically(
-      path, std::span<const char>(reinterpret_cast<const char*>(bytes.data()), bytes.size()));
-}
 
 }  // namespace
+
+std::string write_map_bytes(const std::filesystem::path& path, std::span<const unsigned char> bytes) {
+  return hal::write_file_atomically(path, std::span<const char>(reinterpret_cast<const char*>(bytes.data()), bytes.size()));
+}
 
 std::string save_map_file(const std::filesystem::path& path, const KeyframeStore& store, const graph::PoseGraph& graph,
                           const AdaptiveLoopThreshold& threshold, const MapDigests& digests) {

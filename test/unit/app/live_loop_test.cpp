@@ -11,6 +11,7 @@
 #include "status_line.hpp"
 
 #include "allocation_counter.hpp"
+#include "rankslam/hal/file_set.hpp"
 #include "rankslam/replay/recording.hpp"
 #include "rankslam/replay/replay_camera.hpp"
 #include "rankslam/sim/simulator.hpp"
@@ -21,6 +22,7 @@
 #include <fcntl.h>
 #include <poll.h>
 #include <sys/socket.h>
+#include <sys/stat.h>
 #include <sys/un.h>
 #include <unistd.h>
 
@@ -155,6 +157,15 @@ class LiveLoopTest : public ::testing::Test {
     std::error_code ignored;
     fs::remove_all(dir_, ignored);
   }
+  /// The simulated office's first `frames` frames as a recording in dir_/recording.
+  void simulate_office(int frames, replay::Recording& recording) {
+    sim::SimulationOptions simulation;
+    simulation.scene = "office";
+    simulation.out_dir = dir_ / "recording";
+    simulation.frames = frames;
+    ASSERT_EQ(sim::simulate_recording(simulation, nullptr), "");
+    ASSERT_EQ(replay::open_recording(simulation.out_dir, recording), "");
+  }
   fs::path dir_;
 };
 
@@ -265,13 +276,9 @@ TEST_F(LiveLoopTest, WatchdogFollowsTheLoopNotTheCamera) {
 // writer gets the map and trajectory as they were at the offer; a checkpoint due while the
 // writer is busy is skipped and counted; stop() waits for the write; the map file loads.
 TEST_F(LiveLoopTest, CheckpointsCopyOnTheLoopsThreadAndWriteOnTheirOwn) {
-  sim::SimulationOptions simulation;
-  simulation.scene = "office";
-  simulation.out_dir = dir_ / "recording";
-  simulation.frames = 10;
-  ASSERT_EQ(sim::simulate_recording(simulation, nullptr), "");
   replay::Recording recording;
-  ASSERT_EQ(replay::open_recording(simulation.out_dir, recording), "");
+  simulate_office(10, recording);
+  if (HasFatalFailure()) return;
   replay::ReplayDepthCamera camera(recording, replay::ReplayOptions{});
   ASSERT_EQ(camera.open(), "");
   PipelineOptions pipeline_options;
@@ -322,6 +329,75 @@ TEST_F(LiveLoopTest, CheckpointsCopyOnTheLoopsThreadAndWriteOnTheirOwn) {
   EXPECT_NE(writer_thread, std::this_thread::get_id());
   EXPECT_EQ(written_poses, pipeline.trajectory().size());
 
+  FramePipeline restarted(config, camera.calibration(), nullptr, pipeline_options);
+  ASSERT_EQ(restarted.load_map(map_path), kExitOk);
+  EXPECT_EQ(restarted.loop().keyframe_store().size(), pipeline.loop().keyframe_store().size());
+}
+
+/// The file's inode: a rewrite renames a new file over it, so it changes (a hard link to the old
+/// file keeps its inode from being reused).
+ino_t inode_of(const fs::path& path) {
+  struct stat status {};
+  return ::stat(path.c_str(), &status) == 0 ? status.st_ino : 0;
+}
+
+// A camera standing still changes nothing in the map: a checkpoint then leaves the file the
+// writer last wrote alone (no rewrite of the whole map every interval); a file moved away, or a
+// map that changed, is written, and what is on disk always loads as the map.
+TEST_F(LiveLoopTest, ACheckpointLeavesAnUnchangedMapFileAlone) {
+  replay::Recording recording;
+  simulate_office(40, recording);
+  if (HasFatalFailure()) return;
+  replay::ReplayDepthCamera camera(recording, replay::ReplayOptions{});
+  ASSERT_EQ(camera.open(), "");
+  PipelineOptions pipeline_options;
+  pipeline_options.max_frames = 200;
+  const slam::SlamConfig config;
+  FramePipeline pipeline(config, camera.calibration(), nullptr, pipeline_options);
+  hal::RgbdFrame frame;
+  for (int i = 0; i < 20; ++i) {
+    ASSERT_EQ(camera.read(frame, std::chrono::seconds(5)), hal::ReadStatus::kOk);
+    (void)pipeline.process(frame);
+  }
+  const int keyframes_before = pipeline.loop().keyframes();
+
+  const fs::path out = dir_ / "out";
+  ASSERT_EQ(hal::prepare_output_directory(out), "");
+  const fs::path map_path = dir_ / "map.rsm";
+  const fs::path kept = dir_ / "kept.rsm";
+  CheckpointWriter writer(config, camera.calibration(), map_path, out, OutputFrame::kCamera,
+                          Eigen::Isometry3d::Identity(), "test");
+  std::unique_ptr<slam::MapSnapshot> snapshot = pipeline.loop().make_map_snapshot();
+  const auto checkpoint = [&] {
+    pipeline.loop().snapshot_map(*snapshot);
+    return writer({*snapshot, pipeline.trajectory(), pipeline.frames()});
+  };
+  ASSERT_EQ(checkpoint(), "");
+  fs::create_hard_link(map_path, kept);
+
+  // A second of standing still: the last image again and again.
+  hal::RgbdFrame still = frame;
+  still.rgb = frame.rgb.clone();
+  still.depth = frame.depth.clone();
+  for (int i = 0; i < 30; ++i) {
+    still.stamp_ns += 33'333'333;
+    still.stamp_s += 0.033333333;
+    (void)pipeline.process(still);
+  }
+  ASSERT_EQ(pipeline.loop().keyframes(), keyframes_before);
+  ASSERT_EQ(checkpoint(), "");
+  EXPECT_EQ(inode_of(map_path), inode_of(kept)) << "an unchanged map was written again";
+
+  fs::remove(map_path);  // moved away by the user: the next checkpoint writes it again
+  ASSERT_EQ(checkpoint(), "");
+  ASSERT_TRUE(fs::is_regular_file(map_path));
+  fs::remove(kept);
+  fs::create_hard_link(map_path, kept);
+
+  while (camera.read(frame, std::chrono::seconds(5)) == hal::ReadStatus::kOk) (void)pipeline.process(frame);
+  ASSERT_GT(pipeline.loop().keyframes(), keyframes_before);
+  ASSERT_EQ(checkpoint(), "");
+  EXPECT_NE(inode_of(map_path), inode_of(kept)) << "a changed map was not written";
   FramePipeline restarted(config, camera.calibration(), nullptr, pipeline_options);
   ASSERT_EQ(restarted.load_map(map_path), kExitOk);
   EXPECT_EQ(restarted.loop().keyframe_store().size(), pipeline.loop().keyframe_store().size());

@@ -96,6 +96,8 @@ MapFileInfo decode_map(std::span<const unsigned char> bytes, const std::string& 
 /// grows with the map instead of being allocated for every write).
 [[nodiscard]] std::string save_map_file(const std::filesystem::path& path, const MapSnapshot& snapshot,
                                         std::vector<unsigned char>& bytes);
+/// Writes encoded map bytes to `path` atomically, as save_map_file does.
+[[nodiscard]] std::string write_map_bytes(const std::filesystem::path& path, std::span<const unsigned char> bytes);
 /// Reads `path` (a regular file) and decodes it as decode_map does; throws std::runtime_error
 /// naming the file.
 MapFileInfo load_map_file(const std::filesystem::path& path, const MapDigests& expected, const MapContents& into);
