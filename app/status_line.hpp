@@ -20,9 +20,10 @@ struct StatusTotals {
 
 /// The journal's view of `rankslam run`: every `interval_ns` one line on `fd` (stderr) with the
 /// frame rate, the frames by status and the camera reads without a frame over the interval,
-/// the key-frames and the resident memory, and with checkpoints those written and failed. Called from the SLAM loop's thread (never from the
-/// pose output's real-time one); formats into a fixed buffer and writes with write(2): no
-/// allocation, and a turn without a line is one compare.
+/// the key-frames and the resident memory, and with checkpoints those written and failed.
+/// Called from the SLAM loop's thread (never from the pose output's real-time one); formats into
+/// a fixed buffer and writes with write(2): no allocation, and a turn without a line is one
+/// compare.
 class StatusLine {
  public:
   /// `interval_ns` <= 0: no lines.

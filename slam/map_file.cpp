@@ -650,11 +650,6 @@ MapFileInfo decode_map(std::span<const unsigned char> bytes, const std::string& 
   }
 }
 
-namespace {
-
-
-}  // namespace
-
 std::string write_map_bytes(const std::filesystem::path& path, std::span<const unsigned char> bytes) {
   return hal::write_file_atomically(path, std::span<const char>(reinterpret_cast<const char*>(bytes.data()), bytes.size()));
 }

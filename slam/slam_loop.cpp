@@ -88,6 +88,10 @@ void SlamLoop::relocalise(FrameResult& result) {
                        last_photometric_inliers_ >= config_.min_inliers &&
                        result.photometric_inliers < config_.reference_min_overlap * last_photometric_inliers_;
   last_photometric_inliers_ = result.status == FrameStatus::kTracking ? result.photometric_inliers : 0;
+  // A doubted frame neither found nor confirmed by the map around tracking's pose is lost.
+  const auto lose_unless_confirmed = [&] {
+    if (doubted && !tracking_registers(result, 0, config_.min_inliers)) result.status = FrameStatus::kLost;
+  };
   if (!searching_) {
     // The search needs descriptors to rank key-frames with, and key-frames.
     const bool failed = after > 0 && failed_in_a_row_ >= after;
@@ -115,7 +119,7 @@ void SlamLoop::relocalise(FrameResult& result) {
     if (in_map_ && posed && searched_frames_ >= sweep + config_.relocalisation.confirm_frames) {
       searching_ = false;
     }
-    if (doubted && !tracking_registers(result, 0, config_.min_inliers)) result.status = FrameStatus::kLost;
+    lose_unless_confirmed();
     return;
   }
   searching_ = false;
@@ -129,7 +133,7 @@ void SlamLoop::relocalise(FrameResult& result) {
     // of a plain corridor apart) and explain the frame better than the map around the pose
     // tracking gives does.
     if (found.photometric_inliers < config_.min_inliers) {
-      if (doubted && !tracking_registers(result, 0, config_.min_inliers)) result.status = FrameStatus::kLost;
+      lose_unless_confirmed();
       return;
     }
     if (tracking_registers(result, found.inliers, 0)) return;
