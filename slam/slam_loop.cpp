@@ -57,6 +57,7 @@ FrameResult SlamLoop::process(const hal::RgbdFrame& frame, const nav::MotionPrio
 
 void SlamLoop::search_loaded_map() {
   in_map_ = false;
+  lost_by_doubt_ = false;
   start_search();
 }
 
@@ -71,26 +72,30 @@ void SlamLoop::start_search() {
 void SlamLoop::relocalise(FrameResult& result) {
   failed_in_a_row_ = result.status == FrameStatus::kFailed ? failed_in_a_row_ + 1 : 0;
   const int after = config_.relocalisation.after_failed_frames;
-  // Image inliers against the tracking reference: a kidnapped robot in a place whose geometry
-  // looks alike (a plain corridor) still registers, but loses most of them in one frame.
-  const int image_inliers = result.photometric_matches > 0 ? result.photometric_inliers : result.inliers;
-  // With wheels a drop is left to the wheel/vision arbitration: in a plain corridor it also comes
-  // with turns and slips, where a search took stretches that look alike.
-  const bool image_inliers_dropped = result.status == FrameStatus::kTracking && !result.wheels.prior_given &&
-                                     last_image_inliers_ > 0 &&
-                                     image_inliers < config_.reference_min_overlap * last_image_inliers_;
-  last_image_inliers_ = result.status == FrameStatus::kTracking ? image_inliers : 0;
   const bool searchable = after > 0 && keyframe_layout(config_).photometric_features > 0 && keyframe_store_.size() > 0;
-  // A drop from an image that held the pose (a plain wall's few features come and go) puts the
-  // frame's pose in doubt, the camera may have been carried off: lost unless the search finds it,
-  // or finds tracking right.
-  const bool doubted = searchable && in_map_ && image_inliers_dropped &&
-                       last_photometric_inliers_ >= config_.min_inliers &&
-                       result.photometric_inliers < config_.reference_min_overlap * last_photometric_inliers_;
-  last_photometric_inliers_ = result.status == FrameStatus::kTracking ? result.photometric_inliers : 0;
-  // A doubted frame neither found nor confirmed by the map around tracking's pose is lost.
+  // The image's overlap with the tracking reference: a kidnapped robot in a place whose geometry
+  // looks alike (a plain corridor) still registers, but most features find no match in one frame.
+  // Matches, not inliers: the matcher searches around the predicted pose, so the few chance
+  // matches of another place fit the prediction, and the inliers of a plain wall's features come
+  // and go while their matches stay. A drop from an image that held the pose puts the frame's
+  // pose in doubt: lost unless the search finds it, or finds tracking right. With wheels a drop
+  // is left to the wheel/vision arbitration: in a plain corridor it also comes with turns and
+  // slips, where a search took stretches that look alike.
+  const bool doubted = searchable && in_map_ && result.status == FrameStatus::kTracking &&
+                       !result.wheels.prior_given && last_photometric_matches_ >= config_.min_inliers &&
+                       result.photometric_matches < config_.reference_min_overlap * last_photometric_matches_;
+  last_photometric_matches_ = result.status == FrameStatus::kTracking ? result.photometric_matches : 0;
+  // A doubted frame neither found nor confirmed by the map around tracking's pose is lost. Where
+  // its image could have confirmed it (photometric matches enough), so is the chain from it: lost
+  // until the search finds the camera in the map, as a loaded map is. A view whose features left
+  // it (a plain wall filling it) gives the search nothing to place: the pose stays geometry's.
   const auto lose_unless_confirmed = [&] {
-    if (doubted && !tracking_registers(result, 0, config_.min_inliers)) result.status = FrameStatus::kLost;
+    if (!doubted || tracking_registers(result, 0, config_.min_inliers)) return;
+    result.status = FrameStatus::kLost;
+    if (result.photometric_matches >= config_.min_inliers) {
+      in_map_ = false;
+      lost_by_doubt_ = true;
+    }
   };
   if (!searching_) {
     // The search needs descriptors to rank key-frames with, and key-frames.
@@ -122,6 +127,9 @@ void SlamLoop::relocalise(FrameResult& result) {
     lose_unless_confirmed();
     return;
   }
+  // The chain in doubt since a drop went on from a pose: a place must be seen in the image to be
+  // taken instead, as where tracking disagrees (below). The search goes on.
+  if (lost_by_doubt_ && found.photometric_inliers < config_.min_inliers) return;
   searching_ = false;
   if (in_map_ && posed) {
     // Tracking went on after the failure: where the place found agrees with it within the drift
@@ -169,6 +177,7 @@ void SlamLoop::relocalise(FrameResult& result) {
   // this frame: an edge from them would pull the next key-frame towards it.
   backend_.forget_wheel_motion();
   in_map_ = true;
+  lost_by_doubt_ = false;
   failed_in_a_row_ = 0;
   ++relocalisations_;
 }

@@ -147,13 +147,13 @@ class SlamLoop {
   std::unique_ptr<Tracker> tracker_;
   /// Consecutive frames whose registration failed without wheels.
   int failed_in_a_row_ = 0;
-  /// The last frame's image inliers against its tracking reference; 0 when it was not tracked.
-  int last_image_inliers_ = 0;
-  /// The previous frame's photometric inliers (0 unless it was tracked).
-  int last_photometric_inliers_ = 0;
+  /// The previous frame's photometric matches (0 unless it was tracked).
+  int last_photometric_matches_ = 0;
   /// Searching the stored key-frames (for searched_frames_ frames); `in_map_` false: the poses
   /// tracking gives are not in the map's frame (a loaded map not found yet).
   bool searching_ = false;
+  /// Out of the map since a doubted frame its image could have confirmed and did not.
+  bool lost_by_doubt_ = false;
   int searched_frames_ = 0;
   int tracked_while_searching_ = 0;
   /// The newest key-frame when the search started: later ones were made by tracking since.
