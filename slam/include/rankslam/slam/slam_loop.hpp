@@ -149,18 +149,18 @@ class SlamLoop {
   int failed_in_a_row_ = 0;
   /// The previous frame's photometric matches (0 unless it was tracked).
   int last_photometric_matches_ = 0;
-  /// Searching the stored key-frames (for searched_frames_ frames); `in_map_` false: the poses
-  /// tracking gives are not in the map's frame (a loaded map not found yet).
+  /// Searching the stored key-frames (for searched_frames_ frames).
   bool searching_ = false;
-  /// Out of the map since a doubted frame its image could have confirmed and did not.
-  bool lost_by_doubt_ = false;
   int searched_frames_ = 0;
   int tracked_while_searching_ = 0;
   /// The newest key-frame when the search started: later ones were made by tracking since.
   std::int64_t search_start_sequence_ = 0;
   /// Key-frames were retired after a relocalisation: the map is rebuilt at the end.
   bool rebuild_map_ = false;
+  /// False: the poses tracking gives are not in the map's frame (a loaded map not found yet, or
+  /// `lost_by_doubt_`: since a doubted frame its image could have confirmed and did not).
   bool in_map_ = true;
+  bool lost_by_doubt_ = false;
   int relocalisations_ = 0;
 
   Eigen::Isometry3d T_world_last_keyframe_ = Eigen::Isometry3d::Identity();
