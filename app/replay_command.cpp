@@ -257,6 +257,7 @@ int run_replay(const ReplayArgs& args) {
   eval::write_status_and_wheels(json, pipeline.status_counts(), wheels ? &*wheels : nullptr, loop.wheel_slip_events(), wheels_off_reason);
   json.integer("keyframes", loop.keyframes());
   json.integer("loop_closures", loop.loop_closures());
+  json.integer("loop_closures_refuted", loop.loop_closures_refuted());
   if (checked_closures > 0) {
     json.integer("loop_closures_checked", checked_closures);
     json.integer("false_loop_closures", false_closures);
@@ -342,7 +343,7 @@ int run_replay(const ReplayArgs& args) {
   } else {
     std::printf("  (no wheels: %s)\n", wheels_off_reason.c_str());
   }
-  std::printf("loop closures %d", loop.loop_closures());
+  std::printf("loop closures %d (%d refuted by their neighbours)", loop.loop_closures(), loop.loop_closures_refuted());
   if (checked_closures > 0) {
     std::printf("  against the ground truth: %d false, worst %.3f m %.2f deg", false_closures, worst_closure_m,
                 worst_closure_deg);

@@ -338,6 +338,7 @@ int run_live(const RunArgs& args) {
   json.string("output_frame", to_string(output_frame));
   json.integer("keyframes", loop.keyframes());
   json.integer("loop_closures", loop.loop_closures());
+  json.integer("loop_closures_refuted", loop.loop_closures_refuted());
   json.number("peak_rss_mb", peak_rss_mb());
   json.string("camera", (openni2_camera != nullptr ? "openni2:" + robot.camera_location : "replay:" + recording.root.string()));
   if (openni2_camera != nullptr) {

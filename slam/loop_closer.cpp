@@ -5,6 +5,7 @@
 
 
 #include <algorithm>
+#include <array>
 #include <cmath>
 #include <span>
 
@@ -142,6 +143,11 @@ void LoopCloser::try_candidate(StoredKeyframe& stored, FrameResult& result) {
     edge.information = backend_.registration_information(photometric_inliers + geometric_inliers, estimate.noise_scale);
   }
   edge.kind = graph::EdgeKind::kLoopClosure;
+  // Last, as it registers again (the edge's information above reads the registrar's inliers).
+  if (refuted_by_neighbours(stored, current, edge.T_from_to)) {
+    ++refuted_;
+    return;
+  }
   if (!backend_.add_loop_closure(edge)) return;
   ++stored.loop_closures;
   ++current.loop_closures;
@@ -155,6 +161,59 @@ void LoopCloser::try_candidate(StoredKeyframe& stored, FrameResult& result) {
   threshold_.add(photometric_inliers, geometric_inliers);
   ++closures_;
   result.loop_closure = true;
+}
+
+LoopCloser::Witness LoopCloser::witness(const StoredKeyframe& neighbour, const StoredKeyframe& current,
+                                        const Eigen::Isometry3d& T_neighbour_current) {
+  const bool with_geometry = search_geometric_ != nullptr;
+  FrameResult scratch;
+  const MotionEstimate estimate = registrar_.register_frames(
+      neighbour.photometric, neighbour.velocity, current.photometric, current.velocity, scratch, T_neighbour_current,
+      T_neighbour_current, with_geometry ? &neighbour.geometric : nullptr, with_geometry ? &current.geometric : nullptr,
+      /*refine=*/false);
+  if (!estimate.ok || !estimate.T_target_source.matrix().allFinite()) return Witness::kNone;
+  // A witness registers as well as a closure must; a weaker registration is less precise than the
+  // closure it would judge.
+  const int inliers = with_geometry ? scratch.photometric_inliers + scratch.geometric_inliers : scratch.inliers;
+  if (inliers < threshold_.value()) return Witness::kNone;
+  Eigen::Isometry3d measured = estimate.T_target_source;
+  if (with_geometry &&
+      refine_on_stored_cloud(registrar_, geometric_, config_, config_.loop.icp_above_rotation_sigma_deg,
+                             neighbour.geometric, *search_geometric_, measured) == StoredRefinement::kFailed) {
+    return Witness::kNone;
+  }
+  const Eigen::Isometry3d difference = T_neighbour_current.inverse() * measured;
+  const bool agrees = difference.translation().norm() <= config_.loop.neighbour_agreement_m &&
+                      lie::rotation_deg(difference) <= config_.loop.neighbour_agreement_deg;
+  return agrees ? Witness::kAgrees : Witness::kDisagrees;
+}
+
+bool LoopCloser::refuted_by_neighbours(const StoredKeyframe& stored, const StoredKeyframe& current,
+                                       const Eigen::Isometry3d& T_stored_current) {
+  if (config_.loop.neighbour_agreement_m <= 0.0) return false;
+  // The nearest key-frame before and after the stored one in sequence, among the candidates' own.
+  std::array<int, 2> neighbours{-1, -1};
+  for (int i = 0; i < store_.capacity(); ++i) {
+    const StoredKeyframe& other = store_.slot(i);
+    if (!other.used || other.node < 0 || other.sequence == stored.sequence) continue;
+    if (other.sequence > current.sequence - config_.loop.min_keyframe_gap) continue;
+    const std::size_t side = other.sequence < stored.sequence ? 0 : 1;
+    const int best = neighbours[side];
+    if (best < 0 || std::abs(other.sequence - stored.sequence) < std::abs(store_.slot(best).sequence - stored.sequence)) {
+      neighbours[side] = i;
+    }
+  }
+  bool witnessed = false;
+  for (const int slot : neighbours) {
+    if (slot < 0) continue;
+    const StoredKeyframe& neighbour = store_.slot(slot);
+    const Eigen::Isometry3d T_neighbour_current =
+        lie::renormalised(neighbour.T_world_cam.inverse() * stored.T_world_cam * T_stored_current);
+    const Witness said = witness(neighbour, current, T_neighbour_current);
+    if (said == Witness::kAgrees) return false;
+    witnessed = witnessed || said == Witness::kDisagrees;
+  }
+  return witnessed;
 }
 
 const LoopClosure* LoopCloser::closure(int index) const {

@@ -132,6 +132,11 @@ struct LoopConfig {
   // A refined closure is taken only where the surfaces fix every direction this fraction as well as
   // the feature estimate: a blank wall or the floor alone fixes too little (docs/results.md §5).
   double icp_min_information_ratio = 0.1;
+  // A closure must agree with the chain around its stored key-frame: where the stored one's
+  // neighbours register the new key-frame, one must place it within this of the closure's pose,
+  // or the closure is dropped (docs/methods.md §10). 0 m: no check.
+  double neighbour_agreement_m = 0.02;
+  double neighbour_agreement_deg = 2.0;
 
   /// Whether a correction of a pose `travelled_m` along the path from its reference is within the
   /// drift a loop closure may correct: max_correction_* plus drift_* per metre.
@@ -167,6 +172,10 @@ struct LoopConfig {
           "fused mode: a loop closure whose photometric inliers fix the rotation worse than this is refined by ICP (0: never for that)");
     visit("loop_icp_min_information_ratio", icp_min_information_ratio, 0.0, 1.0e6, "",
           "fused mode: an ICP-refined loop closure is dropped where the surfaces fix some direction less than this fraction of the feature estimate");
+    visit("loop_neighbour_agreement_m", neighbour_agreement_m, 0.0, 10.0, "m",
+          "a closure is dropped where neighbours of its stored key-frame register the new one and none places it this close (0: no check)");
+    visit("loop_neighbour_agreement_deg", neighbour_agreement_deg, 0.0, 180.0, "deg",
+          "a closure is dropped where neighbours of its stored key-frame register the new one and none turns it this little from the closure");
   }
 };
 

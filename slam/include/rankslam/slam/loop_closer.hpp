@@ -7,6 +7,8 @@
 #include "rankslam/slam/keyframe_store.hpp"
 #include "rankslam/slam/registrar.hpp"
 
+#include <Eigen/Geometry>
+
 #include <cstddef>
 #include <cstdint>
 #include <vector>
@@ -34,6 +36,8 @@ class LoopCloser {
   void advance(int count, FrameResult& result);
 
   [[nodiscard]] int closures() const { return closures_; }
+  /// Closures that passed every other check and that the stored key-frame's neighbours refuted.
+  [[nodiscard]] int refuted() const { return refuted_; }
   /// The index-th accepted closure, or null once it has left the log (see SlamLoop::loop_closure).
   [[nodiscard]] const LoopClosure* closure(int index) const;
   [[nodiscard]] double threshold() const { return threshold_.value(); }
@@ -58,6 +62,16 @@ class LoopCloser {
  private:
   /// Registers one candidate; adds it to the graph if it closes a loop.
   void try_candidate(StoredKeyframe& stored, FrameResult& result);
+  /// What a registration of the searching key-frame against `neighbour`, a key-frame beside the
+  /// closure's stored one in the chain, says of the closure's pose `T_neighbour_current`.
+  enum class Witness { kNone, kAgrees, kDisagrees };
+  [[nodiscard]] Witness witness(const StoredKeyframe& neighbour, const StoredKeyframe& current,
+                                const Eigen::Isometry3d& T_neighbour_current);
+  /// Whether the closure T_stored_current disagrees with the chain around `stored`: the
+  /// key-frames next to it in sequence register the new one, and none places it where the closure
+  /// does.
+  [[nodiscard]] bool refuted_by_neighbours(const StoredKeyframe& stored, const StoredKeyframe& current,
+                                           const Eigen::Isometry3d& T_stored_current);
 
   /// A stored key-frame near the searching one: the nearest are registered first.
   struct Candidate {
@@ -88,6 +102,7 @@ class LoopCloser {
   const geometry::GeometricFeatures* search_geometric_ = nullptr;
   geometry::GeometricFeatures search_copy_;
   int closures_ = 0;
+  int refuted_ = 0;
   std::int64_t relocalised_first_sequence_ = 0;
   double relocalised_path_m_ = 0.0;
   /// The latest accepted closures, by index modulo the size.

@@ -55,6 +55,8 @@ class SlamLoop {
   [[nodiscard]] const PointMap& map() const { return map_.map(); }
   [[nodiscard]] int keyframes() const { return keyframes_; }
   [[nodiscard]] int loop_closures() const { return loop_closer_.closures(); }
+  /// Closures that passed every check but the stored key-frame's neighbours' (docs/methods.md §10).
+  [[nodiscard]] int loop_closures_refuted() const { return loop_closer_.refuted(); }
   /// The index-th accepted loop closure (0: the first), or null once it has left the log (the
   /// last LoopCloser::kClosureLogMinCapacity or 4·loop_max_candidates are kept, whichever is
   /// more: read them after each frame to see every one).
