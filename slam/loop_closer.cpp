@@ -88,29 +88,13 @@ void LoopCloser::advance(int count, FrameResult& result) {
 
 void LoopCloser::try_candidate(StoredKeyframe& stored, FrameResult& result) {
   StoredKeyframe& current = store_.slot(search_slot_);
-  const bool with_geometry = search_geometric_ != nullptr;
   const Eigen::Isometry3d predicted = stored.T_world_cam.inverse() * current.T_world_cam;
-  FrameResult scratch;
-  const MotionEstimate estimate = registrar_.register_frames(
-      stored.photometric, stored.velocity, current.photometric, current.velocity, scratch, predicted, predicted,
-      with_geometry ? &stored.geometric : nullptr, with_geometry ? &current.geometric : nullptr, /*refine=*/false);
-  if (!estimate.ok || !estimate.T_target_source.matrix().allFinite()) return;
-  const int photometric_inliers = with_geometry ? scratch.photometric_inliers : scratch.inliers;
-  const int geometric_inliers = with_geometry ? scratch.geometric_inliers : 0;
-  if (photometric_inliers + geometric_inliers < threshold_.value()) return;
-  // Where tracking needs the geometric ICP for its precision (photometric inliers few or poorly
-  // spread), a closure on descriptor matches alone is less precise than the chain it would
-  // correct: it is refined as tracking is, on the key-frame's stored cloud, the feature estimate
-  // holding what the view leaves free, and is not taken unrefined.
-  Eigen::Isometry3d T_stored_current = estimate.T_target_source;
-  bool refined_by_icp = false;
-  if (with_geometry) {
-    const StoredRefinement refinement =
-        refine_on_stored_cloud(registrar_, geometric_, config_, config_.loop.icp_above_rotation_sigma_deg, stored.geometric,
-                               *search_geometric_, T_stored_current);
-    if (refinement == StoredRefinement::kFailed) return;
-    refined_by_icp = refinement == StoredRefinement::kRefined;
-  }
+  StoredRegistration registration;
+  if (!register_stored(stored, current, predicted, registration)) return;
+  const MotionEstimate& estimate = registration.estimate;
+  const int photometric_inliers = registration.photometric_inliers;
+  const int geometric_inliers = registration.geometric_inliers;
+  const Eigen::Isometry3d& T_stored_current = registration.T_stored_current;
 
   // Pose consistency: a true closure corrects the drift accumulated since the candidate, no more.
   const double travelled_m = this->travelled_m(current, stored);
@@ -129,7 +113,7 @@ void LoopCloser::try_candidate(StoredKeyframe& stored, FrameResult& result) {
   edge.from = stored.node;
   edge.to = current.node;
   edge.T_from_to = lie::renormalised(T_stored_current);
-  if (refined_by_icp) {
+  if (registration.refined_by_icp) {
     // As a sequential ICP-refined edge: what the surfaces fix, plus the feature inliers where
     // they fit their noise. A closure the view leaves free in a direction (a robot that turned
     // back to face the same plain corridor) then does not pull the chain along it.
@@ -163,26 +147,40 @@ void LoopCloser::try_candidate(StoredKeyframe& stored, FrameResult& result) {
   result.loop_closure = true;
 }
 
-LoopCloser::Witness LoopCloser::witness(const StoredKeyframe& neighbour, const StoredKeyframe& current,
-                                        const Eigen::Isometry3d& T_neighbour_current) {
+bool LoopCloser::register_stored(const StoredKeyframe& stored, const StoredKeyframe& current,
+                                 const Eigen::Isometry3d& predicted, StoredRegistration& out) {
   const bool with_geometry = search_geometric_ != nullptr;
   FrameResult scratch;
-  const MotionEstimate estimate = registrar_.register_frames(
-      neighbour.photometric, neighbour.velocity, current.photometric, current.velocity, scratch, T_neighbour_current,
-      T_neighbour_current, with_geometry ? &neighbour.geometric : nullptr, with_geometry ? &current.geometric : nullptr,
-      /*refine=*/false);
-  if (!estimate.ok || !estimate.T_target_source.matrix().allFinite()) return Witness::kNone;
-  // A witness registers as well as a closure must; a weaker registration is less precise than the
-  // closure it would judge.
-  const int inliers = with_geometry ? scratch.photometric_inliers + scratch.geometric_inliers : scratch.inliers;
-  if (inliers < threshold_.value()) return Witness::kNone;
-  Eigen::Isometry3d measured = estimate.T_target_source;
-  if (with_geometry &&
-      refine_on_stored_cloud(registrar_, geometric_, config_, config_.loop.icp_above_rotation_sigma_deg,
-                             neighbour.geometric, *search_geometric_, measured) == StoredRefinement::kFailed) {
-    return Witness::kNone;
+  out.estimate = registrar_.register_frames(
+      stored.photometric, stored.velocity, current.photometric, current.velocity, scratch, predicted, predicted,
+      with_geometry ? &stored.geometric : nullptr, with_geometry ? &current.geometric : nullptr, /*refine=*/false);
+  if (!out.estimate.ok || !out.estimate.T_target_source.matrix().allFinite()) return false;
+  out.photometric_inliers = with_geometry ? scratch.photometric_inliers : scratch.inliers;
+  out.geometric_inliers = with_geometry ? scratch.geometric_inliers : 0;
+  if (out.photometric_inliers + out.geometric_inliers < threshold_.value()) return false;
+  // Where tracking needs the geometric ICP for its precision (photometric inliers few or poorly
+  // spread), a closure on descriptor matches alone is less precise than the chain it would
+  // correct: it is refined as tracking is, on the key-frame's stored cloud, the feature estimate
+  // holding what the view leaves free, and is not taken unrefined.
+  out.T_stored_current = out.estimate.T_target_source;
+  out.refined_by_icp = false;
+  if (with_geometry) {
+    const StoredRefinement refinement =
+        refine_on_stored_cloud(registrar_, geometric_, config_, config_.loop.icp_above_rotation_sigma_deg, stored.geometric,
+                               *search_geometric_, out.T_stored_current);
+    if (refinement == StoredRefinement::kFailed) return false;
+    out.refined_by_icp = refinement == StoredRefinement::kRefined;
   }
-  const Eigen::Isometry3d difference = T_neighbour_current.inverse() * measured;
+  return true;
+}
+
+LoopCloser::Witness LoopCloser::witness(const StoredKeyframe& neighbour, const StoredKeyframe& current,
+                                        const Eigen::Isometry3d& T_neighbour_current) {
+  // A witness registers as a closure must: a weaker registration is less precise than the closure
+  // it would judge.
+  StoredRegistration registration;
+  if (!register_stored(neighbour, current, T_neighbour_current, registration)) return Witness::kNone;
+  const Eigen::Isometry3d difference = T_neighbour_current.inverse() * registration.T_stored_current;
   const bool agrees = difference.translation().norm() <= config_.loop.neighbour_agreement_m &&
                       lie::rotation_deg(difference) <= config_.loop.neighbour_agreement_deg;
   return agrees ? Witness::kAgrees : Witness::kDisagrees;

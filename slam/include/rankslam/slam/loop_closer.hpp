@@ -62,6 +62,18 @@ class LoopCloser {
  private:
   /// Registers one candidate; adds it to the graph if it closes a loop.
   void try_candidate(StoredKeyframe& stored, FrameResult& result);
+  /// The searching key-frame `current` registered against `stored`, predicted by `predicted`.
+  struct StoredRegistration {
+    MotionEstimate estimate;
+    Eigen::Isometry3d T_stored_current = Eigen::Isometry3d::Identity();  ///< refined where it was
+    int photometric_inliers = 0;
+    int geometric_inliers = 0;
+    bool refined_by_icp = false;
+  };
+  /// Registers as a closure is measured: false unless the inliers pass ε and, where tracking would
+  /// need the ICP, the refinement on the stored cloud holds.
+  [[nodiscard]] bool register_stored(const StoredKeyframe& stored, const StoredKeyframe& current,
+                                     const Eigen::Isometry3d& predicted, StoredRegistration& out);
   /// What a registration of the searching key-frame against `neighbour`, a key-frame beside the
   /// closure's stored one in the chain, says of the closure's pose `T_neighbour_current`.
   enum class Witness { kNone, kAgrees, kDisagrees };
