@@ -89,8 +89,17 @@ void LoopCloser::advance(int count, FrameResult& result) {
 void LoopCloser::try_candidate(StoredKeyframe& stored, FrameResult& result) {
   StoredKeyframe& current = store_.slot(search_slot_);
   const Eigen::Isometry3d predicted = stored.T_world_cam.inverse() * current.T_world_cam;
+  // Below ε (set by the closures accepted so far, often in textured places) a registration with
+  // tracking's min_inliers may still close the loop, where a neighbour of the stored key-frame
+  // registers the new one to the same pose: a plain corridor's surfaces give fewer inliers.
+  const bool corroborable = config_.loop.neighbour_agreement_m > 0.0;
   StoredRegistration registration;
-  if (!register_stored(stored, current, predicted, registration)) return;
+  if (!register_stored(stored, current, predicted, corroborable ? config_.min_inliers : threshold_.value(),
+                       registration)) {
+    return;
+  }
+  const bool below_threshold =
+      registration.photometric_inliers + registration.geometric_inliers < threshold_.value();
   const MotionEstimate& estimate = registration.estimate;
   const int photometric_inliers = registration.photometric_inliers;
   const int geometric_inliers = registration.geometric_inliers;
@@ -128,10 +137,15 @@ void LoopCloser::try_candidate(StoredKeyframe& stored, FrameResult& result) {
   }
   edge.kind = graph::EdgeKind::kLoopClosure;
   // Last, as it registers again (the edge's information above reads the registrar's inliers).
-  if (refuted_by_neighbours(stored, current, edge.T_from_to)) {
+  // A closure that passed ε is judged by witnesses that pass it too; one below ε by any witness
+  // with tracking's minimum.
+  const Witness said =
+      neighbours_say(stored, current, edge.T_from_to, below_threshold ? config_.min_inliers : threshold_.value());
+  if (said == Witness::kDisagrees) {
     ++refuted_;
     return;
   }
+  if (below_threshold && said != Witness::kAgrees) return;
   if (!backend_.add_loop_closure(edge)) return;
   ++stored.loop_closures;
   ++current.loop_closures;
@@ -142,13 +156,16 @@ void LoopCloser::try_candidate(StoredKeyframe& stored, FrameResult& result) {
   logged.photometric_inliers = photometric_inliers;
   logged.geometric_inliers = geometric_inliers;
   logged.threshold = threshold_.value();
-  threshold_.add(photometric_inliers, geometric_inliers);
+  // ε stays the statistics of closures that passed it on their own: with the corroborated ones it
+  // falls with each, until closures far below any seen pass it unchecked.
+  if (!below_threshold) threshold_.add(photometric_inliers, geometric_inliers);
   ++closures_;
   result.loop_closure = true;
 }
 
 bool LoopCloser::register_stored(const StoredKeyframe& stored, const StoredKeyframe& current,
-                                 const Eigen::Isometry3d& predicted, StoredRegistration& out) {
+                                 const Eigen::Isometry3d& predicted, double min_inliers,
+                                 StoredRegistration& out) {
   const bool with_geometry = search_geometric_ != nullptr;
   FrameResult scratch;
   out.estimate = registrar_.register_frames(
@@ -157,7 +174,7 @@ bool LoopCloser::register_stored(const StoredKeyframe& stored, const StoredKeyfr
   if (!out.estimate.ok || !out.estimate.T_target_source.matrix().allFinite()) return false;
   out.photometric_inliers = with_geometry ? scratch.photometric_inliers : scratch.inliers;
   out.geometric_inliers = with_geometry ? scratch.geometric_inliers : 0;
-  if (out.photometric_inliers + out.geometric_inliers < threshold_.value()) return false;
+  if (out.photometric_inliers + out.geometric_inliers < min_inliers) return false;
   // Where tracking needs the geometric ICP for its precision (photometric inliers few or poorly
   // spread), a closure on descriptor matches alone is less precise than the chain it would
   // correct: it is refined as tracking is, on the key-frame's stored cloud, the feature estimate
@@ -175,20 +192,29 @@ bool LoopCloser::register_stored(const StoredKeyframe& stored, const StoredKeyfr
 }
 
 LoopCloser::Witness LoopCloser::witness(const StoredKeyframe& neighbour, const StoredKeyframe& current,
-                                        const Eigen::Isometry3d& T_neighbour_current) {
-  // A witness registers as a closure must: a weaker registration is less precise than the closure
-  // it would judge.
+                                        const Eigen::Isometry3d& T_neighbour_current, double min_inliers) {
+  // A witness needs `min_inliers` and the same ICP refinement and pose consistency as a closure.
   StoredRegistration registration;
-  if (!register_stored(neighbour, current, T_neighbour_current, registration)) return Witness::kNone;
+  if (!register_stored(neighbour, current, T_neighbour_current, min_inliers, registration)) {
+    return Witness::kNone;
+  }
+  // Nor may it move the new key-frame further from the chain's pose than a closure may: a
+  // registration that far off (a plain corridor matched turned end for end) is its own failure.
+  const Eigen::Isometry3d correction =
+      (neighbour.T_world_cam.inverse() * current.T_world_cam).inverse() * registration.T_stored_current;
+  if (!config_.loop.within_drift(correction.translation().norm(), lie::rotation_deg(correction),
+                                 travelled_m(current, neighbour))) {
+    return Witness::kNone;
+  }
   const Eigen::Isometry3d difference = T_neighbour_current.inverse() * registration.T_stored_current;
   const bool agrees = difference.translation().norm() <= config_.loop.neighbour_agreement_m &&
                       lie::rotation_deg(difference) <= config_.loop.neighbour_agreement_deg;
   return agrees ? Witness::kAgrees : Witness::kDisagrees;
 }
 
-bool LoopCloser::refuted_by_neighbours(const StoredKeyframe& stored, const StoredKeyframe& current,
-                                       const Eigen::Isometry3d& T_stored_current) {
-  if (config_.loop.neighbour_agreement_m <= 0.0) return false;
+LoopCloser::Witness LoopCloser::neighbours_say(const StoredKeyframe& stored, const StoredKeyframe& current,
+                                               const Eigen::Isometry3d& T_stored_current, double min_inliers) {
+  if (config_.loop.neighbour_agreement_m <= 0.0) return Witness::kNone;
   // The nearest key-frame before and after the stored one in sequence, among the candidates' own.
   std::array<int, 2> neighbours{-1, -1};
   for (int i = 0; i < store_.capacity(); ++i) {
@@ -207,11 +233,11 @@ bool LoopCloser::refuted_by_neighbours(const StoredKeyframe& stored, const Store
     const StoredKeyframe& neighbour = store_.slot(slot);
     const Eigen::Isometry3d T_neighbour_current =
         lie::renormalised(neighbour.T_world_cam.inverse() * stored.T_world_cam * T_stored_current);
-    const Witness said = witness(neighbour, current, T_neighbour_current);
-    if (said == Witness::kAgrees) return false;
+    const Witness said = witness(neighbour, current, T_neighbour_current, min_inliers);
+    if (said == Witness::kAgrees) return Witness::kAgrees;
     witnessed = witnessed || said == Witness::kDisagrees;
   }
-  return witnessed;
+  return witnessed ? Witness::kDisagrees : Witness::kNone;
 }
 
 const LoopClosure* LoopCloser::closure(int index) const {

@@ -120,7 +120,7 @@ struct CountedRun {
   int most_loop_candidates_in_a_frame = 0;
   /// Accepted closures whose log entry was gone when read after their frame, or did not name
   /// the latest key-frame as the new one, an earlier one as the stored one, and inliers that
-  /// pass ε.
+  /// pass ε (or tracking's minimum, for a closure a neighbour corroborated).
   int closures_not_logged = 0;
   int closures_logged_wrong = 0;
   int graphs_applied = 0;
@@ -193,7 +193,8 @@ CountedRun run(SlamLoop& loop, const std::vector<hal::RgbdFrame>& frames, int wa
           ++out.closures_not_logged;
         } else if (closure->current_stamp_s != latest_keyframe_stamp_s ||
                    !(closure->stored_stamp_s < closure->current_stamp_s) ||
-                   closure->photometric_inliers + closure->geometric_inliers < closure->threshold) {
+                   closure->photometric_inliers + closure->geometric_inliers <
+                       std::min(closure->threshold, static_cast<double>(SlamConfig{}.min_inliers))) {
           ++out.closures_logged_wrong;
         }
       }

@@ -173,7 +173,7 @@ struct LoopConfig {
     visit("loop_icp_min_information_ratio", icp_min_information_ratio, 0.0, 1.0e6, "",
           "fused mode: an ICP-refined loop closure is dropped where the surfaces fix some direction less than this fraction of the feature estimate");
     visit("loop_neighbour_agreement_m", neighbour_agreement_m, 0.0, 10.0, "m",
-          "a closure is dropped where neighbours of its stored key-frame register the new one and none places it this close (0: no check)");
+          "a closure is dropped where neighbours of its stored key-frame register the new one and none places it this close; one below the adaptive threshold needs a neighbour that does (0: no check, the threshold alone)");
     visit("loop_neighbour_agreement_deg", neighbour_agreement_deg, 0.0, 180.0, "deg",
           "a closure is dropped where neighbours of its stored key-frame register the new one and none turns it this little from the closure");
   }

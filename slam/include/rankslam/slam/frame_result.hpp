@@ -118,7 +118,8 @@ struct LoopClosure {
   Eigen::Isometry3d T_stored_current = Eigen::Isometry3d::Identity();
   int photometric_inliers = 0;
   int geometric_inliers = 0;
-  /// The adaptive threshold ε the inliers passed.
+  /// The adaptive threshold ε when the closure was taken (inliers below it: corroborated by a
+  /// neighbour of the stored key-frame).
   double threshold = 0.0;
 };
 

@@ -17,8 +17,10 @@ namespace rankslam::slam {
 
 /// Adaptive loop closure (docs/methods.md §10): a new key-frame is registered against the
 /// nearest stored key-frames (all in its own frame, or a few per frame from then on); a
-/// registration whose inliers pass the adaptive threshold ε, whose correction fits the drift
-/// since the candidate and whose inliers spread in two directions joins the pose graph.
+/// registration whose inliers pass the adaptive threshold ε (or tracking's minimum, where a
+/// neighbour of the stored key-frame registers the new one to the same pose), whose correction
+/// fits the drift since the candidate, whose inliers spread in two directions and which no
+/// neighbour places elsewhere joins the pose graph.
 /// Everything is sized at construction.
 class LoopCloser {
  public:
@@ -70,20 +72,22 @@ class LoopCloser {
     int geometric_inliers = 0;
     bool refined_by_icp = false;
   };
-  /// Registers as a closure is measured: false unless the inliers pass ε and, where tracking would
-  /// need the ICP, the refinement on the stored cloud holds.
+  /// Registers as a closure is measured: false unless the inliers reach `min_inliers` and, where
+  /// tracking would need the ICP, the refinement on the stored cloud holds.
   [[nodiscard]] bool register_stored(const StoredKeyframe& stored, const StoredKeyframe& current,
-                                     const Eigen::Isometry3d& predicted, StoredRegistration& out);
+                                     const Eigen::Isometry3d& predicted, double min_inliers,
+                                     StoredRegistration& out);
   /// What a registration of the searching key-frame against `neighbour`, a key-frame beside the
   /// closure's stored one in the chain, says of the closure's pose `T_neighbour_current`.
   enum class Witness { kNone, kAgrees, kDisagrees };
   [[nodiscard]] Witness witness(const StoredKeyframe& neighbour, const StoredKeyframe& current,
-                                const Eigen::Isometry3d& T_neighbour_current);
-  /// Whether the closure T_stored_current disagrees with the chain around `stored`: the
-  /// key-frames next to it in sequence register the new one, and none places it where the closure
-  /// does.
-  [[nodiscard]] bool refuted_by_neighbours(const StoredKeyframe& stored, const StoredKeyframe& current,
-                                           const Eigen::Isometry3d& T_stored_current);
+                                const Eigen::Isometry3d& T_neighbour_current, double min_inliers);
+  /// What the chain around `stored` says of the closure T_stored_current: the key-frames next to
+  /// it in sequence register the new one with `min_inliers`; kAgrees where one places it where
+  /// the closure does, kDisagrees where one or both registered and none agreed, kNone where
+  /// neither registered.
+  [[nodiscard]] Witness neighbours_say(const StoredKeyframe& stored, const StoredKeyframe& current,
+                                       const Eigen::Isometry3d& T_stored_current, double min_inliers);
 
   /// A stored key-frame near the searching one: the nearest are registered first.
   struct Candidate {
