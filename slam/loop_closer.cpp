@@ -105,10 +105,6 @@ void LoopCloser::try_candidate(StoredKeyframe& stored, FrameResult& result) {
   const int geometric_inliers = registration.geometric_inliers;
   const Eigen::Isometry3d& T_stored_current = registration.T_stored_current;
 
-  // Pose consistency: a true closure corrects the drift accumulated since the candidate, no more.
-  const double travelled_m = this->travelled_m(current, stored);
-  const Eigen::Isometry3d correction = predicted.inverse() * T_stored_current;
-  if (!config_.loop.within_drift(correction.translation().norm(), lie::rotation_deg(correction), travelled_m)) return;
   // Inlier geometry: the matches that fit must spread in two directions at least; matches on a
   // line or in one small patch fit a wrong motion as well as the right one.
   const std::span<const Eigen::Vector3f> source_points = registrar_.source_points();
@@ -188,7 +184,12 @@ bool LoopCloser::register_stored(const StoredKeyframe& stored, const StoredKeyfr
     if (refinement == StoredRefinement::kFailed) return false;
     out.refined_by_icp = refinement == StoredRefinement::kRefined;
   }
-  return true;
+  // Pose consistency: a true closure corrects the drift accumulated since `stored`, no more; a
+  // registration further off (a plain corridor matched turned end for end) is its own failure.
+  const Eigen::Isometry3d correction =
+      (stored.T_world_cam.inverse() * current.T_world_cam).inverse() * out.T_stored_current;
+  return config_.loop.within_drift(correction.translation().norm(), lie::rotation_deg(correction),
+                                   travelled_m(current, stored));
 }
 
 LoopCloser::Witness LoopCloser::witness(const StoredKeyframe& neighbour, const StoredKeyframe& current,
@@ -196,14 +197,6 @@ LoopCloser::Witness LoopCloser::witness(const StoredKeyframe& neighbour, const S
   // A witness needs `min_inliers` and the same ICP refinement and pose consistency as a closure.
   StoredRegistration registration;
   if (!register_stored(neighbour, current, T_neighbour_current, min_inliers, registration)) {
-    return Witness::kNone;
-  }
-  // Nor may it move the new key-frame further from the chain's pose than a closure may: a
-  // registration that far off (a plain corridor matched turned end for end) is its own failure.
-  const Eigen::Isometry3d correction =
-      (neighbour.T_world_cam.inverse() * current.T_world_cam).inverse() * registration.T_stored_current;
-  if (!config_.loop.within_drift(correction.translation().norm(), lie::rotation_deg(correction),
-                                 travelled_m(current, neighbour))) {
     return Witness::kNone;
   }
   const Eigen::Isometry3d difference = T_neighbour_current.inverse() * registration.T_stored_current;

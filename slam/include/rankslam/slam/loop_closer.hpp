@@ -72,8 +72,9 @@ class LoopCloser {
     int geometric_inliers = 0;
     bool refined_by_icp = false;
   };
-  /// Registers as a closure is measured: false unless the inliers reach `min_inliers` and, where
-  /// tracking would need the ICP, the refinement on the stored cloud holds.
+  /// Registers as a closure is measured: false unless the inliers reach `min_inliers`, where
+  /// tracking would need the ICP the refinement on the stored cloud holds, and the pose found
+  /// moves `current` from the chain's pose no more than the drift since `stored` allows.
   [[nodiscard]] bool register_stored(const StoredKeyframe& stored, const StoredKeyframe& current,
                                      const Eigen::Isometry3d& predicted, double min_inliers,
                                      StoredRegistration& out);
