@@ -192,17 +192,30 @@ bool LoopCloser::register_stored(const StoredKeyframe& stored, const StoredKeyfr
                                    travelled_m(current, stored));
 }
 
+bool LoopCloser::agree(const Eigen::Isometry3d& a, const Eigen::Isometry3d& b) const {
+  const Eigen::Isometry3d difference = a.inverse() * b;
+  return difference.translation().norm() <= config_.loop.neighbour_agreement_m &&
+         lie::rotation_deg(difference) <= config_.loop.neighbour_agreement_deg;
+}
+
 LoopCloser::Witness LoopCloser::witness(const StoredKeyframe& neighbour, const StoredKeyframe& current,
-                                        const Eigen::Isometry3d& T_neighbour_current, double min_inliers) {
-  // A witness needs `min_inliers` and the same ICP refinement and pose consistency as a closure.
+                                        const Eigen::Isometry3d& T_neighbour_current, double min_inliers,
+                                        bool closure_moves) {
+  // A witness needs `min_inliers` and the same ICP refinement and pose consistency as a closure;
+  // one with only tracking's minimum still refutes a closure that moves the new key-frame from
+  // where the chain has it, when it places the key-frame where the chain does.
   StoredRegistration registration;
-  if (!register_stored(neighbour, current, T_neighbour_current, min_inliers, registration)) {
+  if (!register_stored(neighbour, current, T_neighbour_current, std::min(min_inliers, static_cast<double>(config_.min_inliers)),
+                       registration)) {
     return Witness::kNone;
   }
-  const Eigen::Isometry3d difference = T_neighbour_current.inverse() * registration.T_stored_current;
-  const bool agrees = difference.translation().norm() <= config_.loop.neighbour_agreement_m &&
-                      lie::rotation_deg(difference) <= config_.loop.neighbour_agreement_deg;
-  return agrees ? Witness::kAgrees : Witness::kDisagrees;
+  const bool agrees = agree(T_neighbour_current, registration.T_stored_current);
+  if (registration.photometric_inliers + registration.geometric_inliers >= min_inliers) {
+    return agrees ? Witness::kAgrees : Witness::kDisagrees;
+  }
+  const Eigen::Isometry3d T_neighbour_chain = neighbour.T_world_cam.inverse() * current.T_world_cam;
+  return !agrees && closure_moves && agree(T_neighbour_chain, registration.T_stored_current) ? Witness::kDisagrees
+                                                                                             : Witness::kNone;
 }
 
 LoopCloser::Witness LoopCloser::neighbours_say(const StoredKeyframe& stored, const StoredKeyframe& current,
@@ -220,13 +233,14 @@ LoopCloser::Witness LoopCloser::neighbours_say(const StoredKeyframe& stored, con
       neighbours[side] = i;
     }
   }
+  const bool closure_moves = !agree(stored.T_world_cam.inverse() * current.T_world_cam, T_stored_current);
   bool witnessed = false;
   for (const int slot : neighbours) {
     if (slot < 0) continue;
     const StoredKeyframe& neighbour = store_.slot(slot);
     const Eigen::Isometry3d T_neighbour_current =
         lie::renormalised(neighbour.T_world_cam.inverse() * stored.T_world_cam * T_stored_current);
-    const Witness said = witness(neighbour, current, T_neighbour_current, min_inliers);
+    const Witness said = witness(neighbour, current, T_neighbour_current, min_inliers, closure_moves);
     if (said == Witness::kAgrees) return Witness::kAgrees;
     witnessed = witnessed || said == Witness::kDisagrees;
   }

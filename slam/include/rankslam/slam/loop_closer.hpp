@@ -78,15 +78,20 @@ class LoopCloser {
   [[nodiscard]] bool register_stored(const StoredKeyframe& stored, const StoredKeyframe& current,
                                      const Eigen::Isometry3d& predicted, double min_inliers,
                                      StoredRegistration& out);
+  /// Whether two poses lie within loop_neighbour_agreement_m and _deg of each other.
+  [[nodiscard]] bool agree(const Eigen::Isometry3d& a, const Eigen::Isometry3d& b) const;
   /// What a registration of the searching key-frame against `neighbour`, a key-frame beside the
-  /// closure's stored one in the chain, says of the closure's pose `T_neighbour_current`.
+  /// closure's stored one in the chain, says of the closure's pose `T_neighbour_current`: with
+  /// `min_inliers`, whether it agrees; with tracking's minimum, only that it disagrees where it
+  /// keeps the chain's pose and the closure moves it (`closure_moves`).
   enum class Witness { kNone, kAgrees, kDisagrees };
   [[nodiscard]] Witness witness(const StoredKeyframe& neighbour, const StoredKeyframe& current,
-                                const Eigen::Isometry3d& T_neighbour_current, double min_inliers);
+                                const Eigen::Isometry3d& T_neighbour_current, double min_inliers,
+                                bool closure_moves);
   /// What the chain around `stored` says of the closure T_stored_current: the key-frames next to
   /// it in sequence register the new one with `min_inliers`; kAgrees where one places it where
-  /// the closure does, kDisagrees where one or both registered and none agreed, kNone where
-  /// neither registered.
+  /// the closure does, kDisagrees where one or both registered and none agreed (or one with
+  /// tracking's minimum keeps the chain's pose the closure moves), kNone where neither did.
   [[nodiscard]] Witness neighbours_say(const StoredKeyframe& stored, const StoredKeyframe& current,
                                        const Eigen::Isometry3d& T_stored_current, double min_inliers);
 
