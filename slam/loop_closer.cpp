@@ -205,17 +205,15 @@ LoopCloser::Witness LoopCloser::witness(const StoredKeyframe& neighbour, const S
   // one with only tracking's minimum still refutes a closure that moves the new key-frame from
   // where the chain has it, when it places the key-frame where the chain does.
   StoredRegistration registration;
-  if (!register_stored(neighbour, current, T_neighbour_current, std::min(min_inliers, static_cast<double>(config_.min_inliers)),
-                       registration)) {
-    return Witness::kNone;
-  }
+  const double least_inliers = std::min(min_inliers, static_cast<double>(config_.min_inliers));
+  if (!register_stored(neighbour, current, T_neighbour_current, least_inliers, registration)) return Witness::kNone;
   const bool agrees = agree(T_neighbour_current, registration.T_stored_current);
   if (registration.photometric_inliers + registration.geometric_inliers >= min_inliers) {
     return agrees ? Witness::kAgrees : Witness::kDisagrees;
   }
   const Eigen::Isometry3d T_neighbour_chain = neighbour.T_world_cam.inverse() * current.T_world_cam;
-  return !agrees && closure_moves && agree(T_neighbour_chain, registration.T_stored_current) ? Witness::kDisagrees
-                                                                                             : Witness::kNone;
+  const bool keeps_chain = agree(T_neighbour_chain, registration.T_stored_current);
+  return !agrees && closure_moves && keeps_chain ? Witness::kDisagrees : Witness::kNone;
 }
 
 LoopCloser::Witness LoopCloser::neighbours_say(const StoredKeyframe& stored, const StoredKeyframe& current,
