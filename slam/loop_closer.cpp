@@ -204,8 +204,10 @@ LoopCloser::Witness LoopCloser::witness(const StoredKeyframe& neighbour, const S
   // A witness needs `min_inliers` and the same ICP refinement and pose consistency as a closure;
   // one with only tracking's minimum still refutes a closure that moves the new key-frame from
   // where the chain has it, when it places the key-frame where the chain does.
+  // (Where the closure keeps the chain's pose, a weaker registration could say nothing: not made.)
   StoredRegistration registration;
-  const double least_inliers = std::min(min_inliers, static_cast<double>(config_.min_inliers));
+  const double least_inliers =
+      closure_moves ? std::min(min_inliers, static_cast<double>(config_.min_inliers)) : min_inliers;
   if (!register_stored(neighbour, current, T_neighbour_current, least_inliers, registration)) return Witness::kNone;
   const bool agrees = agree(T_neighbour_current, registration.T_stored_current);
   if (registration.photometric_inliers + registration.geometric_inliers >= min_inliers) {
