@@ -3,36 +3,17 @@
 #include <algorithm>
 #include <cmath>
 
-// The rays of a simulated camera's pixels (pinhole or OpenCV fisheye), with the bounding cones
-// of pixel blocks the renderer culls scene quads against.
+// The rays of a simulated camera's pixels (an ideal pinhole, or a fisheye through camera::Lens),
+// with the bounding cones of pixel blocks the renderer culls scene quads against.
 namespace rankslam::sim::detail {
 
 std::optional<Eigen::Vector3d> CameraRays::unproject(double u, double v) const {
-  const double x = (u - camera_.cx) / camera_.fx;
-  const double y = (v - camera_.cy) / camera_.fy;
-  if (pinhole) return Eigen::Vector3d(x, y, 1.0);
-  // Invert θ_d = θ(1 + k1θ² + k2θ⁴ + k3θ⁶ + k4θ⁸) (OpenCV fisheye) by Newton's method.
-  const auto& k = camera_.distortion;
-  const auto distort = [&](double theta) {
-    const double t2 = theta * theta;
-    return theta * (1 + t2 * (k[0] + t2 * (k[1] + t2 * (k[2] + t2 * k[3]))));
-  };
-  const double theta_d = std::hypot(x, y);
-  double theta = theta_d;
-  for (int it = 0; it < 50; ++it) {
-    const double t2 = theta * theta;
-    const double df = 1 + t2 * (3 * k[0] + t2 * (5 * k[1] + t2 * (7 * k[2] + t2 * 9 * k[3])));
-    const double step = (distort(theta) - theta_d) / df;
-    theta -= step;
-    if (std::abs(step) < 1e-13) break;
-  }
-  if (!(theta >= 0.0) || theta > max_field_angle_rad_ || std::abs(distort(theta) - theta_d) > 1e-9) return std::nullopt;
-  if (theta_d < 1e-12) return Eigen::Vector3d(0.0, 0.0, 1.0);
-  return Eigen::Vector3d(std::sin(theta) * x / theta_d, std::sin(theta) * y / theta_d, std::cos(theta));
+  if (pinhole) return Eigen::Vector3d((u - camera_.cx) / camera_.fx, (v - camera_.cy) / camera_.fy, 1.0);
+  return lens_.unproject(u, v);
 }
 
 CameraRays::CameraRays(const hal::CameraCalibration& camera, double max_field_angle_rad)
-    : camera_(camera), max_field_angle_rad_(max_field_angle_rad) {
+    : camera_(camera), lens_(camera, max_field_angle_rad) {
   width = camera.width;
   height = camera.height;
   pinhole = camera.model == hal::CameraModel::kPinhole;

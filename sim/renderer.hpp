@@ -1,5 +1,6 @@
 #pragma once
 
+#include "rankslam/camera/lens.hpp"
 #include "rankslam/sim/scene.hpp"
 
 #include <opencv2/core/mat.hpp>
@@ -58,7 +59,7 @@ class CameraRays {
 
  private:
   hal::CameraCalibration camera_;
-  double max_field_angle_rad_ = 0.0;
+  camera::Lens lens_;
 };
 
 /// One scene quad seen from one camera pose, in camera coordinates (float for speed).
