@@ -8,6 +8,7 @@
 
 #include "allocation_counter.hpp"
 
+#include "rankslam/robust/bearing.hpp"
 #include "rankslam/robust/msse.hpp"
 #include "rankslam/robust/orientation.hpp"
 #include "rankslam/robust/ransac.hpp"
@@ -52,6 +53,7 @@ TEST(Allocations, NoneAfterWarmUp) {
 
   RigidModel rigid(kMax);
   OrientationModel orientation(kMax);
+  BearingModel bearing(kMax);
   ScalarModel scalar;
   RobustWorkspace workspace(kMax);
   std::vector<double> sigmas(kMax);
@@ -81,6 +83,9 @@ TEST(Allocations, NoneAfterWarmUp) {
     EXPECT_EQ(orientation.set_normals(normals.leftCols(static_cast<Eigen::Index>(n))),
               RobustStatus::kOk);
     EXPECT_TRUE(estimate_msse(orientation, msse_config, workspace).ok());
+    // The destination points' directions are bearings of the source points seen from T_t_s.
+    EXPECT_EQ(bearing.set_correspondences(scene.src, scene.dst), RobustStatus::kOk);
+    EXPECT_EQ(estimate_msse(bearing, msse_config, workspace).status, RobustStatus::kOk);
     EXPECT_EQ(scalar.set_values(std::span<const double>(values.data(), n)), RobustStatus::kOk);
     EXPECT_TRUE(estimate_msse(scalar, msse_config, workspace).ok());
     // Failures must not allocate either.
