@@ -34,6 +34,7 @@ std::string camera_yaml(const char* name, const hal::CameraCalibration& camera) 
   text += "    intrinsics: " + list({camera.fx, camera.fy, camera.cx, camera.cy}) + "  # fx fy cx cy\n";
   text += "    distortion: " +
           (fisheye ? list({d[0], d[1], d[2], d[3]}) + "  # k1 k2 k3 k4\n" : list({d[0], d[1], d[2], d[3], d[4]}) + "  # k1 k2 p1 p2 k3\n");
+  if (camera.field_of_view_deg > 0.0) text += "    field_of_view_deg: " + number(camera.field_of_view_deg) + "\n";
   if (!camera.T_base_cam_given) return text;  // an unknown mounting stays unknown in the recording
   const Eigen::Vector3d t = camera.T_base_cam.translation();
   Eigen::Quaterniond q(camera.T_base_cam.linear());

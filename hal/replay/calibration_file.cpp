@@ -127,9 +127,8 @@ std::string read_camera(const YAML::Node& node, const std::string& where, hal::C
     camera.T_base_cam_given = true;
   }
   if (node["field_of_view_deg"]) {
-    // The simulator's image circle: checked like every number, not used by the loop.
-    double field_of_view_deg = 0.0;
-    if (auto error = read_field(node, "field_of_view_deg", where, 1.0, 360.0, field_of_view_deg); !error.empty()) {
+    if (auto error = read_field(node, "field_of_view_deg", where, 1.0, 360.0, camera.field_of_view_deg);
+        !error.empty()) {
       return error;
     }
   }

@@ -1,5 +1,6 @@
 #include "rankslam/camera/lens.hpp"
 
+#include <algorithm>
 #include <cmath>
 #include <numbers>
 
@@ -27,6 +28,9 @@ Lens::Lens(const hal::CameraCalibration& calibration, double max_field_angle_rad
     previous = radius;
   }
   max_field_angle_rad_ = std::min(theta - kScanStepRad, limit);
+  if (calibration.field_of_view_deg > 0.0) {
+    max_field_angle_rad_ = std::min(max_field_angle_rad_, calibration.field_of_view_deg * std::numbers::pi / 360.0);
+  }
 }
 
 double Lens::fisheye_distort(double theta) const {

@@ -53,6 +53,7 @@ VirtualViews::VirtualViews(const hal::CameraCalibration& wide, const hal::Camera
                        Eigen::AngleAxisd(-pitch, Eigen::Vector3d::UnitX()))
                           .toRotationMatrix();
       int reached = 0;
+      v.valid.create(c.height, c.width, CV_8UC1);
       for (int y = 0; y < c.height; ++y) {
         for (int x = 0; x < c.width; ++x) {
           const auto pixel = wide_pixel_of(v.R_wide_view, x, y);
@@ -60,6 +61,7 @@ VirtualViews::VirtualViews(const hal::CameraCalibration& wide, const hal::Camera
                               pixel->y() <= wide.height - 1.0;
           map_x.at<float>(y, x) = inside ? static_cast<float>(pixel->x()) : -1.0F;
           map_y.at<float>(y, x) = inside ? static_cast<float>(pixel->y()) : -1.0F;
+          v.valid.at<unsigned char>(y, x) = inside ? 255 : 0;
           reached += inside ? 1 : 0;
         }
       }

@@ -76,6 +76,8 @@ TEST_F(CalibrationFileTest, WhatTheSimulatorAndTheRecorderWriteLoads) {
   ASSERT_EQ(load(kValid), "");
   EXPECT_DOUBLE_EQ(calibration_.rgb.fx, 517.3);
   ASSERT_TRUE(calibration_.fisheye.has_value());
+  EXPECT_DOUBLE_EQ(calibration_.fisheye->field_of_view_deg, 190.0);
+  EXPECT_DOUBLE_EQ(calibration_.rgb.field_of_view_deg, 0.0) << "not given";
   ASSERT_TRUE(calibration_.wheels.has_value());
   EXPECT_EQ(calibration_.wheels->can_id, 0x101U);
 
@@ -88,7 +90,8 @@ TEST_F(CalibrationFileTest, WhatTheSimulatorAndTheRecorderWriteLoads) {
   ASSERT_EQ(load(kValid), "");
   const hal::Calibration full = calibration_;
   ASSERT_EQ(load(record::calibration_yaml(full, "every section")), "");
-  EXPECT_TRUE(calibration_.fisheye.has_value());
+  ASSERT_TRUE(calibration_.fisheye.has_value());
+  EXPECT_DOUBLE_EQ(calibration_.fisheye->field_of_view_deg, 190.0);
   EXPECT_TRUE(calibration_.wheels.has_value());
   EXPECT_TRUE(calibration_.rgb.T_base_cam.isApprox(full.rgb.T_base_cam, 1e-9));
 }

@@ -27,6 +27,9 @@ struct CameraCalibration {
   std::array<double, 5> distortion{};
   /// Maps points from this camera's optical frame into the robot base frame.
   Eigen::Isometry3d T_base_cam = Eigen::Isometry3d::Identity();
+  /// Full angle of the lens' image circle (calibration.yaml `field_of_view_deg`); 0 when not
+  /// given, and the model's own limit applies.
+  double field_of_view_deg = 0.0;
   /// T_base_cam was given (calibration.yaml); otherwise the identity above is a placeholder and
   /// the mounting is unknown.
   bool T_base_cam_given = false;

@@ -16,7 +16,8 @@ class Lens {
  public:
   /// `max_field_angle_rad` ≤ 0: the largest angle from the optical axis up to which the model's
   /// distortion still grows with the angle (π for a fisheye without such a turn, just under π/2
-  /// for a pinhole), so that projection is one-to-one and unprojection has one answer.
+  /// for a pinhole), so that projection is one-to-one and unprojection has one answer; within
+  /// half the calibration's `field_of_view_deg` where that is given.
   explicit Lens(const hal::CameraCalibration& calibration, double max_field_angle_rad = 0.0);
 
   /// Pixel of a point in the camera's optical frame; none beyond the field angle or, for a

@@ -38,6 +38,9 @@ class VirtualViews {
   [[nodiscard]] const Eigen::Matrix3d& R_wide_view(int index) const { return at(index).R_wide_view; }
   /// Share of view `index`'s pixels that the wide-angle image reaches.
   [[nodiscard]] double coverage(int index) const { return at(index).coverage; }
+  /// CV_8UC1, 255 where view `index` shows the wide-angle image (inside its image and its lens'
+  /// field), 0 where it is black.
+  [[nodiscard]] const cv::Mat& valid_mask(int index) const { return at(index).valid; }
   [[nodiscard]] const Lens& wide_lens() const { return lens_; }
 
   /// Unit ray in the wide-angle camera's frame through pixel (u, v) of view `index`.
@@ -61,6 +64,7 @@ class VirtualViews {
     Eigen::Matrix3d R_wide_view;
     cv::Mat map_xy;     ///< CV_16SC2: integer source pixel
     cv::Mat map_frac;   ///< CV_16UC1: its sub-pixel table index
+    cv::Mat valid;      ///< CV_8UC1
     double coverage = 0.0;
   };
   [[nodiscard]] const View& at(int index) const { return views_.at(static_cast<std::size_t>(index)); }

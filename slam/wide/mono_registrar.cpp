@@ -1,0 +1,55 @@
+#include "rankslam/wide/mono_registrar.hpp"
+
+#include <Eigen/Eigenvalues>
+
+#include <algorithm>
+#include <cmath>
+
+namespace rankslam::wide {
+
+MonoRegistrar::MonoRegistrar(const MonoRegistrationOptions& options)
+    : options_(options),
+      matcher_(cv::NORM_L2),
+      model_(options.max_matches),
+      workspace_(options.max_matches),
+      points_(3, options.max_matches),
+      rays_(3, options.max_matches) {}
+
+MonoRegistration MonoRegistrar::register_frames(const RgbdFeatures& rgbd, const WideFeatures& wide) {
+  MonoRegistration result;
+  if (rgbd.count < options_.min_inliers || wide.count < options_.min_inliers) return result;
+  // OpenCV's matchers append to their output.
+  forward_.clear();
+  backward_.clear();
+  matcher_.knnMatch(rgbd.descriptors, wide.descriptors, forward_, 2);
+  if (options_.mutual) matcher_.match(wide.descriptors, rgbd.descriptors, backward_);
+  int n = 0;
+  for (const auto& pair : forward_) {
+    if (pair.empty() || n >= options_.max_matches) continue;
+    const cv::DMatch& best = pair[0];
+    if (pair.size() > 1 && !(best.distance < options_.ratio * pair[1].distance)) continue;
+    if (options_.mutual && backward_[static_cast<std::size_t>(best.trainIdx)].trainIdx != best.queryIdx) continue;
+    points_.col(n) = rgbd.points.col(best.queryIdx);
+    rays_.col(n) = wide.rays.col(best.trainIdx);
+    ++n;
+  }
+  result.matches = n;
+  if (n < options_.min_inliers) return result;
+  if (model_.set_correspondences(points_.leftCols(n), rays_.leftCols(n)) != robust::RobustStatus::kOk) return result;
+  const auto estimate = robust::estimate_msse(model_, options_.msse, workspace_);
+  if (!estimate.ok()) return result;
+  Eigen::Vector3d mean = Eigen::Vector3d::Zero();
+  for (const int i : estimate.inliers) mean += points_.col(i);
+  mean /= static_cast<double>(estimate.inlier_count);
+  Eigen::Matrix3d scatter = Eigen::Matrix3d::Zero();
+  for (const int i : estimate.inliers) scatter += (points_.col(i) - mean) * (points_.col(i) - mean).transpose();
+  const Eigen::SelfAdjointEigenSolver<Eigen::Matrix3d> principal(scatter / estimate.inlier_count);
+  result.spread_m = std::sqrt(std::max(0.0, principal.eigenvalues()(1)));
+  result.T_wide_rgbd = estimate.model;
+  result.inliers = estimate.inlier_count;
+  result.scale = estimate.scale;
+  result.ok = estimate.inlier_count >= options_.min_inliers;
+  return result;
+}
+
+}  // namespace rankslam::wide
