@@ -15,8 +15,8 @@ namespace rankslam::wide {
 struct SiftOptions {
   /// Strongest keypoints kept per image: per virtual view, and per RGB-D frame.
   int features_per_image = 500;
-  /// SIFT's contrast threshold. OpenCV's 0.04 keeps about 40 features with a depth per RGB-D
-  /// frame of the simulated corridor's plain walls, too few to register; 0.01 keeps about 200.
+  /// SIFT's contrast threshold. OpenCV's 0.04 keeps 17-47 features with a depth per RGB-D frame
+  /// of the simulated corridor's plain walls, too few to register; 0.01 keeps 116-237.
   double contrast_threshold = 0.01;
   /// Pixels of a view's black border (outside the wide-angle image) a keypoint keeps away from:
   /// the border's edge is not in the scene.
