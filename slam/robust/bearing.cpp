@@ -192,6 +192,22 @@ bool BearingModel::fit_inliers(std::span<const int> inliers, const double* point
   return true;
 }
 
+Eigen::Matrix<double, 6, 6> BearingModel::information(const Params& T_c_w, std::span<const int> inliers) const {
+  Eigen::Matrix<double, 6, 6> H = Eigen::Matrix<double, 6, 6>::Zero();
+  for (const int i : inliers) {
+    const Eigen::Vector3d p = T_c_w * point(i);
+    const double norm = p.norm();
+    if (!(norm > 0.0)) continue;
+    const Eigen::Vector3d u = p / norm;
+    const Eigen::Matrix3d dn = (Eigen::Matrix3d::Identity() - u * u.transpose()) / norm;
+    Eigen::Matrix<double, 3, 6> J;
+    J.leftCols<3>() = dn;
+    J.rightCols<3>() = -dn * skew(p);
+    H.noalias() += J.transpose() * J;
+  }
+  return H;
+}
+
 void BearingModel::squared_residuals(const Params& T_c_w, int begin, int count, double* out) const {
   for (int k = 0; k < count; ++k) {
     const Eigen::Vector3d p = T_c_w * point(begin + k);

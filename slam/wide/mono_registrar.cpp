@@ -1,6 +1,7 @@
 #include "rankslam/wide/mono_registrar.hpp"
 
 #include <Eigen/Eigenvalues>
+#include <Eigen/QR>
 
 #include <algorithm>
 #include <cmath>
@@ -46,9 +47,21 @@ MonoRegistration MonoRegistrar::register_frames(const RgbdFeatures& rgbd, const 
   const Eigen::SelfAdjointEigenSolver<Eigen::Matrix3d> principal(scatter / estimate.inlier_count);
   result.spread_m = std::sqrt(std::max(0.0, principal.eigenvalues()(1)));
   result.T_wide_rgbd = estimate.model;
+  // Covariance of ξ = (translation, rotation) for T ← exp(ξ)·T; the translation t of T (the RGB-D
+  // camera's centre in the wide frame) moves by ρ + φ × t.
+  const Eigen::Matrix<double, 6, 6> H = model_.information(estimate.model, estimate.inliers);
+  const Eigen::Matrix<double, 6, 6> covariance =
+      estimate.scale * estimate.scale * H.completeOrthogonalDecomposition().pseudoInverse();
+  const Eigen::Vector3d t = estimate.model.translation();
+  Eigen::Matrix<double, 3, 6> dposition;
+  dposition.leftCols<3>() = Eigen::Matrix3d::Identity();
+  dposition.rightCols<3>() << 0.0, t.z(), -t.y(), -t.z(), 0.0, t.x(), t.y(), -t.x(), 0.0;
+  const Eigen::Matrix3d position_covariance = dposition * covariance * dposition.transpose();
+  result.position_sigma_m =
+      std::sqrt(std::max(0.0, Eigen::SelfAdjointEigenSolver<Eigen::Matrix3d>(position_covariance).eigenvalues()(2)));
   result.inliers = estimate.inlier_count;
   result.scale = estimate.scale;
-  result.ok = estimate.inlier_count >= options_.min_inliers;
+  result.ok = estimate.inlier_count >= options_.min_inliers && result.position_sigma_m <= options_.max_position_sigma_m;
   return result;
 }
 

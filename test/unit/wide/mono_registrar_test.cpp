@@ -68,6 +68,40 @@ TEST(MonoRegistrar, EachRegistrationStandsAlone) {
   EXPECT_TRUE(after.T_wide_rgbd.isApprox(alone.T_wide_rgbd));
 }
 
+TEST(MonoRegistrar, APoseItsInliersLeaveLooseIsRefused) {
+  // 40 points in a 10 cm cluster 4 m away, rays with 3 mrad of noise (about 1.5 px on a view):
+  // the direction is sure, the distance along it is not.
+  std::mt19937 rng(9);
+  std::uniform_real_distribution<double> unit(-1.0, 1.0);
+  std::normal_distribution<double> noise(0.0, 3e-3);
+  std::uniform_real_distribution<float> value(0.0F, 100.0F);
+  constexpr int kPoints = 40;
+  RgbdFeatures rgbd;
+  WideFeatures wide;
+  rgbd.count = wide.count = kPoints;
+  rgbd.points.resize(3, kPoints);
+  wide.rays.resize(3, kPoints);
+  rgbd.descriptors.create(kPoints, 128, CV_32F);
+  wide.descriptors.create(kPoints, 128, CV_32F);
+  for (int i = 0; i < kPoints; ++i) {
+    const Eigen::Vector3d p = Eigen::Vector3d(0.0, 0.0, 4.0) + 0.05 * Eigen::Vector3d(unit(rng), unit(rng), unit(rng));
+    rgbd.points.col(i) = p;
+    wide.rays.col(i) = (p.normalized() + Eigen::Vector3d(noise(rng), noise(rng), noise(rng))).normalized();
+    for (int d = 0; d < 128; ++d) rgbd.descriptors.at<float>(i, d) = value(rng);
+    rgbd.descriptors.row(i).copyTo(wide.descriptors.row(i));
+  }
+  MonoRegistrar registrar;
+  const MonoRegistration r = registrar.register_frames(rgbd, wide);
+  EXPECT_GE(r.inliers, 12) << "enough inliers";
+  EXPECT_GT(r.position_sigma_m, 0.03);
+  EXPECT_FALSE(r.ok) << "but they leave the translation loose";
+  // The same inliers spread over the field fix it.
+  const Scene spread = make_scene(40, 6);
+  const MonoRegistration fixed = registrar.register_frames(spread.rgbd, spread.wide);
+  EXPECT_TRUE(fixed.ok);
+  EXPECT_LT(fixed.position_sigma_m, 1e-3);
+}
+
 TEST(MonoRegistrar, TooFewFeaturesRegisterNothing) {
   const Scene scene = make_scene(11, 5);
   const MonoRegistration r = MonoRegistrar().register_frames(scene.rgbd, scene.wide);

@@ -50,6 +50,10 @@ class BearingModel {
   [[nodiscard]] bool fit_sample(std::span<const int> sample, Params& T_c_w) const;
   [[nodiscard]] bool fit_inliers(std::span<const int> inliers, const double* point_weights, Params& T_c_w) const;
   void squared_residuals(const Params& T_c_w, int begin, int count, double* out) const;
+  /// Gauss-Newton information Σ JᵀJ of the chords of `inliers` at T_c_w, for the perturbation
+  /// T_c_w ← exp(ξ)·T_c_w, ξ = (translation, rotation): divided by the chords' variance it is
+  /// the inverse covariance of the pose.
+  [[nodiscard]] Eigen::Matrix<double, 6, 6> information(const Params& T_c_w, std::span<const int> inliers) const;
 
  private:
   Eigen::Matrix3Xd points_;

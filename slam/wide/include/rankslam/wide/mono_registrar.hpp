@@ -20,6 +20,9 @@ struct MonoRegistrationOptions {
   bool mutual = true;
   /// Fewest MSSE inliers a registration must have (tracking's `min_inliers`).
   int min_inliers = 12;
+  /// Largest standard deviation of the registration's translation (MonoRegistration::
+  /// position_sigma_m) it may have, metres: three of them stay within 10 cm.
+  double max_position_sigma_m = 0.03;
   /// Most matches the estimator takes; sized at set-up.
   int max_matches = 4000;
   robust::MsseConfig msse;
@@ -37,6 +40,10 @@ struct MonoRegistration {
   /// Spread of the inliers' RGB-D points along their second principal axis, metres (RMS): a set
   /// on one line leaves the pose loose about it.
   double spread_m = 0.0;
+  /// Standard deviation of the translation of T_wide_rgbd along its least certain direction,
+  /// metres, from the inliers' geometry and MSSE's scale: what a few distant, clustered inliers
+  /// leave loose.
+  double position_sigma_m = 0.0;
 };
 
 /// RGB-D-to-wide-angle registration (ALGORITHMS.md §6.4): SIFT matches between an RGB-D frame's
