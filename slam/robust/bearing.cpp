@@ -46,6 +46,18 @@ Eigen::Matrix3d skew(const Eigen::Vector3d& v) {
   return m;
 }
 
+/// Jacobian of the unit direction of p = T·x for T ← exp(ξ)·T, ξ = (translation, rotation);
+/// false where p is the origin.
+bool direction_jacobian(const Eigen::Vector3d& p, Eigen::Vector3d& u, Eigen::Matrix<double, 3, 6>& J) {
+  const double norm = p.norm();
+  if (!(norm > 0.0)) return false;
+  u = p / norm;
+  const Eigen::Matrix3d dn = (Eigen::Matrix3d::Identity() - u * u.transpose()) / norm;
+  J.leftCols<3>() = dn;
+  J.rightCols<3>() = -dn * skew(p);
+  return true;
+}
+
 }  // namespace
 
 int solve_p3p(const std::array<Eigen::Vector3d, 3>& points, const std::array<Eigen::Vector3d, 3>& bearings,
@@ -164,18 +176,11 @@ bool BearingModel::fit_inliers(std::span<const int> inliers, const double* point
     Eigen::Matrix<double, 6, 1> g = Eigen::Matrix<double, 6, 1>::Zero();
     for (const int i : inliers) {
       const double w = (has_weights_ ? weights_(i) : 1.0) * (point_weights != nullptr ? point_weights[i] : 1.0);
-      const Eigen::Vector3d p = T * point(i);
-      const double norm = p.norm();
-      if (!(norm > 0.0) || !(w > 0.0)) continue;
-      const Eigen::Vector3d u = p / norm;
-      const Eigen::Vector3d e = u - bearing(i);
-      // d(p/|p|)/dp · dp/dξ for T ← exp(ξ)·T, ξ = (translation, rotation).
+      Eigen::Vector3d u;
       Eigen::Matrix<double, 3, 6> J;
-      const Eigen::Matrix3d dn = (Eigen::Matrix3d::Identity() - u * u.transpose()) / norm;
-      J.leftCols<3>() = dn;
-      J.rightCols<3>() = -dn * skew(p);
+      if (!(w > 0.0) || !direction_jacobian(T * point(i), u, J)) continue;
       H.noalias() += w * J.transpose() * J;
-      g.noalias() += w * J.transpose() * e;
+      g.noalias() += w * J.transpose() * (u - bearing(i));
     }
     const Eigen::LDLT<Eigen::Matrix<double, 6, 6>> ldlt(H);
     if (ldlt.info() != Eigen::Success) return false;
@@ -195,15 +200,9 @@ bool BearingModel::fit_inliers(std::span<const int> inliers, const double* point
 Eigen::Matrix<double, 6, 6> BearingModel::information(const Params& T_c_w, std::span<const int> inliers) const {
   Eigen::Matrix<double, 6, 6> H = Eigen::Matrix<double, 6, 6>::Zero();
   for (const int i : inliers) {
-    const Eigen::Vector3d p = T_c_w * point(i);
-    const double norm = p.norm();
-    if (!(norm > 0.0)) continue;
-    const Eigen::Vector3d u = p / norm;
-    const Eigen::Matrix3d dn = (Eigen::Matrix3d::Identity() - u * u.transpose()) / norm;
+    Eigen::Vector3d u;
     Eigen::Matrix<double, 3, 6> J;
-    J.leftCols<3>() = dn;
-    J.rightCols<3>() = -dn * skew(p);
-    H.noalias() += J.transpose() * J;
+    if (direction_jacobian(T_c_w * point(i), u, J)) H.noalias() += J.transpose() * J;
   }
   return H;
 }
