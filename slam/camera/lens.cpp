@@ -39,14 +39,19 @@ double Lens::fisheye_distort(double theta) const {
   return theta * (1 + t2 * (k[0] + t2 * (k[1] + t2 * (k[2] + t2 * k[3]))));
 }
 
-Eigen::Vector2d Lens::pinhole_distort(const Eigen::Vector2d& xy) const {
+double Lens::pinhole_terms(const Eigen::Vector2d& xy, Eigen::Vector2d& tangential) const {
   const auto& d = calibration_.distortion;  // k1 k2 p1 p2 k3
   const double x = xy.x();
   const double y = xy.y();
   const double r2 = x * x + y * y;
-  const double radial = 1.0 + r2 * (d[0] + r2 * (d[1] + r2 * d[4]));
-  return {x * radial + 2.0 * d[2] * x * y + d[3] * (r2 + 2.0 * x * x),
-          y * radial + d[2] * (r2 + 2.0 * y * y) + 2.0 * d[3] * x * y};
+  tangential = {2.0 * d[2] * x * y + d[3] * (r2 + 2.0 * x * x), d[2] * (r2 + 2.0 * y * y) + 2.0 * d[3] * x * y};
+  return 1.0 + r2 * (d[0] + r2 * (d[1] + r2 * d[4]));
+}
+
+Eigen::Vector2d Lens::pinhole_distort(const Eigen::Vector2d& xy) const {
+  Eigen::Vector2d tangential;
+  const double radial = pinhole_terms(xy, tangential);
+  return xy * radial + tangential;
 }
 
 std::optional<Eigen::Vector2d> Lens::project(const Eigen::Vector3d& point) const {
@@ -72,13 +77,10 @@ std::optional<Eigen::Vector3d> Lens::unproject(double u, double v) const {
   if (!fisheye_) {
     // Fixed-point inversion of the distortion (as OpenCV's undistortPoints), then checked.
     const Eigen::Vector2d target(x, y);
-    const auto& d = calibration_.distortion;  // k1 k2 p1 p2 k3
     Eigen::Vector2d xy = target;
+    Eigen::Vector2d tangential;
     for (int it = 0; it < 50; ++it) {
-      const double r2 = xy.squaredNorm();
-      const double radial = 1.0 + r2 * (d[0] + r2 * (d[1] + r2 * d[4]));
-      const Eigen::Vector2d tangential(2.0 * d[2] * xy.x() * xy.y() + d[3] * (r2 + 2.0 * xy.x() * xy.x()),
-                                       d[2] * (r2 + 2.0 * xy.y() * xy.y()) + 2.0 * d[3] * xy.x() * xy.y());
+      const double radial = pinhole_terms(xy, tangential);
       const Eigen::Vector2d next = (target - tangential) / radial;
       const double moved = (next - xy).squaredNorm();
       xy = next;

@@ -52,39 +52,39 @@ VirtualViews::VirtualViews(const hal::CameraCalibration& wide, const hal::Camera
       v.R_wide_view = (Eigen::AngleAxisd(yaw, Eigen::Vector3d::UnitY()) *
                        Eigen::AngleAxisd(-pitch, Eigen::Vector3d::UnitX()))
                           .toRotationMatrix();
-      int reached = 0;
       v.valid.create(c.height, c.width, CV_8UC1);
       for (int y = 0; y < c.height; ++y) {
         for (int x = 0; x < c.width; ++x) {
-          const auto pixel = wide_pixel_of(v.R_wide_view, x, y);
+          const auto pixel = lens_.project(direction(v.R_wide_view, x, y));
           const bool inside = pixel && pixel->x() >= 0.0 && pixel->y() >= 0.0 && pixel->x() <= wide.width - 1.0 &&
                               pixel->y() <= wide.height - 1.0;
           map_x.at<float>(y, x) = inside ? static_cast<float>(pixel->x()) : -1.0F;
           map_y.at<float>(y, x) = inside ? static_cast<float>(pixel->y()) : -1.0F;
           v.valid.at<unsigned char>(y, x) = inside ? 255 : 0;
-          reached += inside ? 1 : 0;
         }
       }
-      v.coverage = static_cast<double>(reached) / (static_cast<double>(c.width) * c.height);
       cv::convertMaps(map_x, map_y, v.map_xy, v.map_frac, CV_16SC2, false);
       views_.push_back(std::move(v));
     }
   }
 }
 
-std::optional<Eigen::Vector2d> VirtualViews::wide_pixel_of(const Eigen::Matrix3d& R_wide_view, double u,
-                                                           double v) const {
+Eigen::Vector3d VirtualViews::direction(const Eigen::Matrix3d& R_wide_view, double u, double v) const {
   const auto& c = view_camera_;
-  return lens_.project(R_wide_view * Eigen::Vector3d((u - c.cx) / c.fx, (v - c.cy) / c.fy, 1.0));
+  return R_wide_view * Eigen::Vector3d((u - c.cx) / c.fx, (v - c.cy) / c.fy, 1.0);
+}
+
+double VirtualViews::coverage(int index) const {
+  const cv::Mat& valid = at(index).valid;
+  return static_cast<double>(cv::countNonZero(valid)) / static_cast<double>(valid.total());
 }
 
 Eigen::Vector3d VirtualViews::ray(int index, double u, double v) const {
-  const auto& c = view_camera_;
-  return (at(index).R_wide_view * Eigen::Vector3d((u - c.cx) / c.fx, (v - c.cy) / c.fy, 1.0)).normalized();
+  return direction(at(index).R_wide_view, u, v).normalized();
 }
 
 std::optional<Eigen::Vector2d> VirtualViews::wide_pixel(int index, double u, double v) const {
-  return wide_pixel_of(at(index).R_wide_view, u, v);
+  return lens_.project(direction(at(index).R_wide_view, u, v));
 }
 
 std::optional<Eigen::Vector2d> VirtualViews::view_pixel(int index, const Eigen::Vector3d& ray_wide) const {

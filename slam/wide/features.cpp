@@ -38,12 +38,11 @@ bool WideFeatureExtractor::extract(const cv::Mat& wide, WideFeatures& out) {
   out.descriptors.release();
   to_grey(wide, grey_);
   if (!views_.render(grey_, rendered_)) return false;
-  std::vector<cv::Mat> per_view;
   for (int i = 0; i < views_.count(); ++i) {
     sift_->detectAndCompute(rendered_[static_cast<std::size_t>(i)], masks_[static_cast<std::size_t>(i)], keypoints_,
                             descriptors_);
     if (keypoints_.empty()) continue;
-    per_view.push_back(descriptors_.clone());
+    out.descriptors.push_back(descriptors_);
     for (const auto& k : keypoints_) {
       out.view.push_back(i);
       out.pixel.push_back(k.pt);
@@ -51,7 +50,6 @@ bool WideFeatureExtractor::extract(const cv::Mat& wide, WideFeatures& out) {
   }
   out.count = static_cast<int>(out.pixel.size());
   if (out.count == 0) return true;
-  cv::vconcat(per_view, out.descriptors);
   out.rays.resize(3, out.count);
   for (int k = 0; k < out.count; ++k) {
     const auto& p = out.pixel[static_cast<std::size_t>(k)];
@@ -66,7 +64,6 @@ RgbdFeatureExtractor::RgbdFeatureExtractor(const camera::DepthCameraModel& camer
 bool RgbdFeatureExtractor::extract(const cv::Mat& image, const cv::Mat& depth, RgbdFeatures& out) {
   out.count = 0;
   out.pixel.clear();
-  out.descriptors.release();
   if (image.cols != camera_.width() || image.rows != camera_.height() || depth.size() != image.size() ||
       depth.type() != CV_16UC1) {
     return false;

@@ -39,13 +39,6 @@ MonoRegistration MonoRegistrar::register_frames(const RgbdFeatures& rgbd, const 
   if (model_.set_correspondences(points_.leftCols(n), rays_.leftCols(n)) != robust::RobustStatus::kOk) return result;
   const auto estimate = robust::estimate_msse(model_, options_.msse, workspace_);
   if (!estimate.ok()) return result;
-  Eigen::Vector3d mean = Eigen::Vector3d::Zero();
-  for (const int i : estimate.inliers) mean += points_.col(i);
-  mean /= static_cast<double>(estimate.inlier_count);
-  Eigen::Matrix3d scatter = Eigen::Matrix3d::Zero();
-  for (const int i : estimate.inliers) scatter += (points_.col(i) - mean) * (points_.col(i) - mean).transpose();
-  const Eigen::SelfAdjointEigenSolver<Eigen::Matrix3d> principal(scatter / estimate.inlier_count);
-  result.spread_m = std::sqrt(std::max(0.0, principal.eigenvalues()(1)));
   result.T_wide_rgbd = estimate.model;
   // Covariance of ξ = (translation, rotation) for T ← exp(ξ)·T; the translation t of T (the RGB-D
   // camera's centre in the wide frame) moves by ρ + φ × t.

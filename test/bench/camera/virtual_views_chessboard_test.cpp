@@ -4,6 +4,7 @@
 // found in the wide image must reproject through the model.
 #include "rankslam/camera/lens.hpp"
 #include "rankslam/camera/virtual_views.hpp"
+#include "rankslam/replay/recording.hpp"
 
 #include <gtest/gtest.h>
 
@@ -51,14 +52,7 @@ std::optional<hal::CameraCalibration> left_camera() {
 }
 
 /// The RGB-D camera whose intrinsics the virtual images share (TUM freiburg1's Kinect).
-hal::CameraCalibration kinect() {
-  hal::CameraCalibration camera;
-  camera.fx = 517.3;
-  camera.fy = 516.5;
-  camera.cx = 318.6;
-  camera.cy = 255.3;
-  return camera;
-}
+hal::CameraCalibration kinect() { return replay::tum_calibration("freiburg1")->rgb; }
 
 /// Sum of squared distances of points from the straight lines fitted (total least squares)
 /// through each of their rows and columns.

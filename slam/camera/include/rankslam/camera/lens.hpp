@@ -30,8 +30,11 @@ class Lens {
   [[nodiscard]] const hal::CameraCalibration& calibration() const { return calibration_; }
 
  private:
-  /// Fisheye: θ_d of θ. Pinhole: the radial factor of r² = x² + y².
+  /// Fisheye: θ_d of θ.
   [[nodiscard]] double fisheye_distort(double theta) const;
+  /// Pinhole: the radial factor at normalised point xy, and its tangential shift.
+  [[nodiscard]] double pinhole_terms(const Eigen::Vector2d& xy, Eigen::Vector2d& tangential) const;
+  /// Pinhole: xy · radial + tangential.
   [[nodiscard]] Eigen::Vector2d pinhole_distort(const Eigen::Vector2d& xy) const;
 
   hal::CameraCalibration calibration_;

@@ -37,7 +37,7 @@ class VirtualViews {
   /// Rotates directions in view `index`'s optical frame into the wide-angle camera's.
   [[nodiscard]] const Eigen::Matrix3d& R_wide_view(int index) const { return at(index).R_wide_view; }
   /// Share of view `index`'s pixels that the wide-angle image reaches.
-  [[nodiscard]] double coverage(int index) const { return at(index).coverage; }
+  [[nodiscard]] double coverage(int index) const;
   /// CV_8UC1, 255 where view `index` shows the wide-angle image (inside its image and its lens'
   /// field), 0 where it is black.
   [[nodiscard]] const cv::Mat& valid_mask(int index) const { return at(index).valid; }
@@ -65,11 +65,10 @@ class VirtualViews {
     cv::Mat map_xy;     ///< CV_16SC2: integer source pixel
     cv::Mat map_frac;   ///< CV_16UC1: its sub-pixel table index
     cv::Mat valid;      ///< CV_8UC1
-    double coverage = 0.0;
   };
   [[nodiscard]] const View& at(int index) const { return views_.at(static_cast<std::size_t>(index)); }
-  [[nodiscard]] std::optional<Eigen::Vector2d> wide_pixel_of(const Eigen::Matrix3d& R_wide_view, double u,
-                                                             double v) const;
+  /// Direction (not unit) of view pixel (u, v) in the wide-angle camera's frame.
+  [[nodiscard]] Eigen::Vector3d direction(const Eigen::Matrix3d& R_wide_view, double u, double v) const;
 
   Lens lens_;
   hal::CameraCalibration view_camera_;

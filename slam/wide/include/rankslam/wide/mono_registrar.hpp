@@ -37,9 +37,6 @@ struct MonoRegistration {
   int inliers = 0;
   /// MSSE's scale of the inliers' chord residuals (≈ radians).
   double scale = 0.0;
-  /// Spread of the inliers' RGB-D points along their second principal axis, metres (RMS): a set
-  /// on one line leaves the pose loose about it.
-  double spread_m = 0.0;
   /// Standard deviation of the translation of T_wide_rgbd along its least certain direction,
   /// metres, from the inliers' geometry and MSSE's scale: what a few distant, clustered inliers
   /// leave loose.
