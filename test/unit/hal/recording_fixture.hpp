@@ -7,6 +7,7 @@
 #include <filesystem>
 #include <fstream>
 #include <string>
+#include <vector>
 
 namespace rankslam::test {
 
@@ -60,6 +61,28 @@ inline std::filesystem::path write_small_recording(const std::string& name, int 
                    "      rotation_xyzw: [-0.5, 0.5, -0.5, 0.5]\n";
   }
   return root;
+}
+
+/// Adds wide-angle images (32x24, grey value 10·k) at `stamps` to a small recording, the k-th
+/// listed in fisheye.txt as fisheye/k.png, and the fisheye camera to its calibration.
+inline void add_wide_images(const std::filesystem::path& root, const std::vector<double>& stamps) {
+  namespace fs = std::filesystem;
+  fs::create_directories(root / "fisheye");
+  std::ofstream list(root / "fisheye.txt");
+  for (std::size_t k = 0; k < stamps.size(); ++k) {
+    const std::string name = "fisheye/" + std::to_string(k) + ".png";
+    cv::imwrite((root / name).string(), cv::Mat(24, 32, CV_8UC3, cv::Scalar::all(10.0 * static_cast<double>(k))));
+    char line[64];
+    std::snprintf(line, sizeof line, "%.6f %s\n", stamps[k], name.c_str());
+    list << line;
+  }
+  std::ofstream calibration(root / "calibration.yaml", std::ios::app);
+  calibration << "  fisheye:\n"
+                 "    model: fisheye\n"
+                 "    width: 32\n"
+                 "    height: 24\n"
+                 "    intrinsics: [10.0, 10.0, 16.0, 12.0]\n"
+                 "    distortion: [0, 0, 0, 0]\n";
 }
 
 }  // namespace rankslam::test

@@ -1,5 +1,7 @@
 #include "rankslam/replay/replay_camera.hpp"
 
+#include "rankslam/hal/nearest_image.hpp"
+
 #include "recording_fixture.hpp"
 
 #include <gtest/gtest.h>
@@ -194,6 +196,84 @@ TEST(ReplayCamera, RatesWhosePacingWouldOverflowAreRefused) {
     ReplayDepthCamera camera(recording, options);
     EXPECT_EQ(camera.open(), "") << rate;
   }
+}
+
+}  // namespace
+}  // namespace rankslam::replay
+
+namespace rankslam::replay {
+namespace {
+
+using test::add_wide_images;
+
+TEST(ReplayImageCamera, PlaysTheWideImagesInOrderAndSkipsACorruptOneByName) {
+  const fs::path root = test::write_small_recording("rankslam_replay_wide", 3, true, true);
+  add_wide_images(root, {100.0, 100.1, 100.2});
+  std::ofstream(root / "fisheye/1.png", std::ios::trunc) << "not an image";
+  Recording recording;
+  ASSERT_EQ(open_recording(root, recording), "");
+  ReplayImageCamera camera(recording, {});
+  ASSERT_EQ(camera.open(), "");
+  hal::ImageFrame frame;
+  std::vector<std::uint32_t> sequences;
+  while (camera.read(frame, milliseconds(2000)) == hal::ReadStatus::kOk) {
+    sequences.push_back(frame.sequence);
+    EXPECT_EQ(frame.image.type(), CV_8UC3);
+    EXPECT_EQ(frame.image.at<cv::Vec3b>(0, 0)[0], 10 * frame.sequence);
+    EXPECT_EQ(frame.stamp_ns, 100'000'000'000LL + 100'000'000LL * frame.sequence);
+  }
+  EXPECT_EQ(sequences, (std::vector<std::uint32_t>{0, 2}));
+  EXPECT_EQ(camera.counters().corrupt, 1U);
+  const auto warnings = camera.take_warnings();
+  ASSERT_EQ(warnings.size(), 1U);
+  EXPECT_NE(warnings[0].find("fisheye/1.png"), std::string::npos) << warnings[0];
+}
+
+TEST(ReplayImageCamera, ARecordingWithoutWideAngleCalibrationIsRefusedByName) {
+  const fs::path root = test::write_small_recording("rankslam_replay_wide_uncalibrated", 2, true, true);
+  Recording recording;
+  ASSERT_EQ(open_recording(root, recording), "");
+  ReplayImageCamera camera(recording, {});
+  EXPECT_NE(camera.open().find("cameras.fisheye"), std::string::npos);
+}
+
+// Frames at 100 + i/30 s, paired with the wide-angle images by a NearestImage with `max_gap_ns`:
+// each frame's image sequence, -1 for none.
+std::vector<int> paired_sequences(const Recording& recording, std::int64_t max_gap_ns,
+                                  hal::NearestImageCounters& counters) {
+  ReplayDepthCamera frames(recording, {});
+  ReplayImageCamera camera(recording, {});
+  EXPECT_EQ(frames.open(), "");
+  EXPECT_EQ(camera.open(), "");
+  hal::NearestImage nearest(camera, max_gap_ns);
+  nearest.allocate(32, 24, CV_8UC3);
+  std::vector<int> sequences;
+  hal::RgbdFrame frame;
+  while (frames.read(frame, milliseconds(2000)) == hal::ReadStatus::kOk) {
+    const hal::ImageFrame* image = nearest.take(frame.stamp_ns, milliseconds(2000));
+    sequences.push_back(image == nullptr ? -1 : static_cast<int>(image->sequence));
+    if (image != nullptr) {
+      EXPECT_EQ(image->image.at<cv::Vec3b>(0, 0)[1], 10 * image->sequence);
+    }
+  }
+  counters = nearest.counters();
+  return sequences;
+}
+
+// Images at 100.003 (frame 0), 100.045 (frame 1 is 11.7 ms away, frame 2 21.7 ms), 100.103
+// (frame 3) and 100.5 (after every frame).
+TEST(NearestImage, PairsEachImageWithTheNearestFrameWithinTheGapOnce) {
+  const fs::path root = test::write_small_recording("rankslam_nearest_image", 9, true, true);
+  add_wide_images(root, {100.003, 100.045, 100.103, 100.5});
+  Recording recording;
+  ASSERT_EQ(open_recording(root, recording), "");
+  hal::NearestImageCounters counters;
+  EXPECT_EQ(paired_sequences(recording, 20'000'000, counters), (std::vector<int>{0, 1, -1, 2, -1, -1, -1, -1, -1}));
+  EXPECT_EQ(counters.read, 4U);
+  EXPECT_EQ(counters.paired, 3U);
+  // A 50 ms gap: frame 2 now reaches image 2, which frame 3, nearer to it, then cannot have again.
+  EXPECT_EQ(paired_sequences(recording, 50'000'000, counters), (std::vector<int>{0, 1, 2, -1, -1, -1, -1, -1, -1}));
+  EXPECT_EQ(counters.paired, 3U);
 }
 
 }  // namespace
