@@ -278,3 +278,37 @@ TEST(NearestImage, PairsEachImageWithTheNearestFrameWithinTheGapOnce) {
 
 }  // namespace
 }  // namespace rankslam::replay
+
+namespace rankslam::replay {
+namespace {
+
+// With a reader thread the camera is drained as fast as it delivers, the newest kHeld images
+// kept: once the stream has ended, the last ones pair with their frames, the older ones were
+// passed over, and the image handed out is a copy the reader cannot overwrite.
+TEST(NearestImage, AReaderThreadKeepsTheNewestImagesForPairing) {
+  const fs::path root = test::write_small_recording("rankslam_nearest_reader", 2, true, true);
+  std::vector<double> stamps;
+  for (int k = 0; k < 10; ++k) stamps.push_back(100.0 + 0.1 * k);
+  test::add_wide_images(root, stamps);
+  Recording recording;
+  ASSERT_EQ(open_recording(root, recording), "");
+  ReplayImageCamera camera(recording, {});
+  ASSERT_EQ(camera.open(), "");
+  hal::NearestImage nearest(camera, 20'000'000);
+  nearest.allocate(32, 24, CV_8UC3);
+  nearest.start_reader(milliseconds(100));
+  for (int i = 0; i < 2000 && !nearest.ended(); ++i) std::this_thread::sleep_for(milliseconds(5));
+  ASSERT_TRUE(nearest.ended());
+  nearest.stop_reader();
+  EXPECT_EQ(nearest.counters().read, 10U);
+  EXPECT_EQ(nearest.counters().unpaired, 10U - hal::NearestImage::kHeld);
+  EXPECT_EQ(nearest.take(100'500'000'000LL, milliseconds(0)), nullptr);  // passed over
+  const hal::ImageFrame* image = nearest.take(100'800'000'000LL, milliseconds(0));
+  ASSERT_NE(image, nullptr);
+  EXPECT_EQ(image->sequence, 8U);
+  EXPECT_EQ(image->image.at<cv::Vec3b>(0, 0)[2], 80);
+  EXPECT_EQ(nearest.take(100'800'000'000LL, milliseconds(0)), nullptr);  // handed out once
+}
+
+}  // namespace
+}  // namespace rankslam::replay
