@@ -26,14 +26,17 @@ RecordingWriter::~RecordingWriter() { (void)close(); }
 std::string RecordingWriter::open(const hal::Calibration& calibration) {
   (void)close();
   if (options_.frame_queue < 1 || options_.frame_queue > 1024) return "recording: frame_queue must be 1..1024";
+  if (options_.wide_queue > 1024) return "recording: wide_queue must be 0..1024";
   if (options_.png_compression < 0 || options_.png_compression > 9) return "recording: png_compression must be 0..9";
   std::error_code ec;
   if (fs::exists(root_, ec)) {
     if (!fs::is_directory(root_, ec)) return root_.string() + ": exists and is not a directory";
     if (!fs::is_empty(root_, ec)) return root_.string() + ": not empty; record into a new directory";
   }
-  for (const char* sub : {"rgb", "depth", "ir"}) {
+  const bool wide = calibration.fisheye.has_value() && options_.wide_queue > 0;
+  for (const char* sub : {"rgb", "depth", "ir", "fisheye"}) {
     if (std::string(sub) == "ir" && !options_.write_ir) continue;
+    if (std::string(sub) == "fisheye" && !wide) continue;
     fs::create_directories(root_ / sub, ec);
     if (ec) return (root_ / sub).string() + ": cannot create: " + ec.message();
   }
@@ -58,6 +61,7 @@ std::string RecordingWriter::open(const hal::Calibration& calibration) {
   check(open_index("depth.txt", "# depth maps\n# file: 'rankslam record'\n# timestamp filename\n", depth_index_));
   check(open_index("associations.txt", "# rgb_timestamp rgb_file depth_timestamp depth_file\n", associations_));
   if (options_.write_ir) check(open_index("ir.txt", "# infrared images\n# file: 'rankslam record'\n# timestamp filename\n", ir_index_));
+  if (wide) check(open_index("fisheye.txt", "# wide-angle images\n# file: 'rankslam record'\n# timestamp filename\n", wide_index_));
   if (options_.write_can) check(open_index("can.log", "", can_log_));
   if (!error.empty()) {
     (void)close();
@@ -67,15 +71,25 @@ std::string RecordingWriter::open(const hal::Calibration& calibration) {
   // Every buffer the capture side touches is allocated here.
   const int width = calibration.rgb.width;
   const int height = calibration.rgb.height;
-  slots_.assign(options_.frame_queue, Slot{});
-  for (auto& slot : slots_) {
-    slot.rgb.create(height, width, CV_8UC3);
-    slot.depth.create(height, width, CV_16UC1);
+  const std::size_t wide_slots = wide ? options_.wide_queue : 0;
+  slots_.assign(options_.frame_queue + wide_slots, Slot{});
+  for (std::size_t i = 0; i < slots_.size(); ++i) {
+    Slot& slot = slots_[i];
+    slot.wide = i >= options_.frame_queue;
+    if (slot.wide) {
+      slot.rgb.create(calibration.fisheye->height, calibration.fisheye->width, CV_8UC3);
+    } else {
+      slot.rgb.create(height, width, CV_8UC3);
+      slot.depth.create(height, width, CV_16UC1);
+    }
   }
-  ready_.assign(options_.frame_queue, 0);
+  ready_.assign(slots_.size(), 0);
   free_.clear();
   free_.reserve(options_.frame_queue);
   for (std::size_t i = options_.frame_queue; i-- > 0;) free_.push_back(i);
+  wide_free_.clear();
+  wide_free_.reserve(wide_slots);
+  for (std::size_t i = slots_.size(); i-- > options_.frame_queue;) wide_free_.push_back(i);
   ready_head_ = ready_count_ = 0;
   can_ring_.assign(options_.write_can ? std::max<std::size_t>(options_.can_queue, 1) : 1, hal::CanFrame{});
   can_batch_.clear();
@@ -117,6 +131,32 @@ bool RecordingWriter::push(const hal::RgbdFrame& frame) {
     ready_[(ready_head_ + ready_count_) % ready_.size()] = index;
     ++ready_count_;
     ++counters_.frames_queued;
+  }
+  changed_.notify_one();
+  return true;
+}
+
+bool RecordingWriter::push_wide(const hal::ImageFrame& image) {
+  std::size_t index = 0;
+  {
+    std::lock_guard lock(mutex_);
+    if (!open_ || stop_ || wide_free_.empty() || image.image.size() != slots_[wide_free_.back()].rgb.size() ||
+        (image.image.type() != CV_8UC3 && image.image.type() != CV_8UC1)) {
+      ++counters_.wide_dropped;
+      return false;
+    }
+    index = wide_free_.back();
+    wide_free_.pop_back();
+  }
+  Slot& slot = slots_[index];
+  slot.sequence = image.sequence;
+  slot.stamp_s = image.stamp_s;
+  // A camera streams one type: a grey one reallocates each slot once, at its first image.
+  image.image.copyTo(slot.rgb);
+  {
+    std::lock_guard lock(mutex_);
+    ready_[(ready_head_ + ready_count_) % ready_.size()] = index;
+    ++ready_count_;
   }
   changed_.notify_one();
   return true;
@@ -179,6 +219,16 @@ std::string RecordingWriter::write_frame(Slot& slot) {
   return {};
 }
 
+std::string RecordingWriter::write_wide(Slot& slot) {
+  char name[64];
+  std::snprintf(name, sizeof name, "fisheye/%.6f.png", slot.stamp_s);
+  if (auto error = write_png(root_ / name, slot.rgb); !error.empty()) return error;
+  if (std::fprintf(wide_index_, "%.6f %s\n", slot.stamp_s, name) <= 0 || std::fflush(wide_index_) != 0) {
+    return (root_ / "fisheye.txt").string() + ": cannot write: " + errno_text();
+  }
+  return {};
+}
+
 void RecordingWriter::write_can_lines() {
   if (can_log_ == nullptr || can_batch_.empty()) return;
   bool ok = true;
@@ -217,15 +267,16 @@ void RecordingWriter::writer_loop() {
     }
     write_can_lines();
     if (index == slots_.size()) continue;
-    const std::string error = write_frame(slots_[index]);
+    Slot& slot = slots_[index];
+    const std::string error = slot.wide ? write_wide(slot) : write_frame(slot);
     std::lock_guard lock(mutex_);
     if (error.empty()) {
-      ++counters_.frames_written;
+      ++(slot.wide ? counters_.wide_written : counters_.frames_written);
     } else {
-      ++counters_.frames_failed;
+      ++(slot.wide ? counters_.wide_failed : counters_.frames_failed);
       if (first_error_.empty()) first_error_ = error;
     }
-    free_.push_back(index);
+    (slot.wide ? wide_free_ : free_).push_back(index);
   }
 }
 
@@ -237,7 +288,7 @@ std::string RecordingWriter::close() {
   changed_.notify_all();
   if (writer_.joinable()) writer_.join();
   std::string error;
-  for (std::FILE** file : {&rgb_index_, &depth_index_, &associations_, &ir_index_, &can_log_}) {
+  for (std::FILE** file : {&rgb_index_, &depth_index_, &associations_, &ir_index_, &wide_index_, &can_log_}) {
     if (*file != nullptr && std::fclose(*file) != 0 && error.empty()) error = root_.string() + ": closing an index file: " + errno_text();
     *file = nullptr;
   }

@@ -120,6 +120,68 @@ TEST(RecordingWriter, FullQueueDropsAndCountsInsteadOfBlocking) {
   std::filesystem::remove_all(dir.parent_path());
 }
 
+TEST(RecordingWriter, WritesTheWideAngleImagesTheReplayPlaysBack) {
+  const auto dir = openni2::test::fresh_directory("wide") / "take";
+  hal::Calibration calibration = openni2::test::dummy_calibration();
+  hal::CameraCalibration fisheye;
+  fisheye.model = hal::CameraModel::kFisheye;
+  fisheye.width = 160;
+  fisheye.height = 120;
+  fisheye.fx = fisheye.fy = 50.0;
+  fisheye.cx = 79.5;
+  fisheye.cy = 59.5;
+  calibration.fisheye = fisheye;
+  RecordingWriter writer(dir, {});
+  ASSERT_EQ(writer.open(calibration), "");
+  hal::RgbdFrame frame;
+  frame.rgb = cv::Mat(240, 320, CV_8UC3, cv::Scalar::all(9));
+  frame.depth = cv::Mat(240, 320, CV_16UC1, cv::Scalar::all(2000));
+  for (int i = 0; i < 4; ++i) {
+    frame.sequence = static_cast<std::uint32_t>(i);
+    frame.stamp_s = 100.0 + i / 10.0;
+    ASSERT_TRUE(writer.push(frame));
+  }
+  std::vector<cv::Mat> images;
+  hal::ImageFrame wide;
+  for (int i = 0; i < 4; ++i) {
+    images.emplace_back(120, 160, CV_8UC3);
+    cv::randu(images.back(), 0, 255);
+    wide.image = images.back();
+    wide.sequence = static_cast<std::uint32_t>(i);
+    wide.stamp_s = 100.0 + i / 10.0;
+    ASSERT_TRUE(writer.push_wide(wide));
+  }
+  wide.image = cv::Mat(240, 320, CV_8UC3, cv::Scalar::all(0));
+  EXPECT_FALSE(writer.push_wide(wide));  // not the calibrated size
+  ASSERT_EQ(writer.close(), "");
+  EXPECT_EQ(writer.counters().wide_written, 4U);
+  EXPECT_EQ(writer.counters().wide_dropped, 1U);
+
+  replay::Recording recording;
+  ASSERT_EQ(replay::open_recording(dir, recording), "");
+  ASSERT_EQ(recording.fisheye.size(), 4U);
+  ASSERT_TRUE(recording.calibration.fisheye.has_value());
+  EXPECT_EQ(recording.calibration.fisheye->model, hal::CameraModel::kFisheye);
+  replay::ReplayImageCamera replay_camera(recording, {});
+  ASSERT_EQ(replay_camera.open(), "");
+  for (std::size_t i = 0; i < 4; ++i) {
+    ASSERT_EQ(replay_camera.read(wide, 2000ms), hal::ReadStatus::kOk) << i;
+    EXPECT_NEAR(wide.stamp_s, 100.0 + static_cast<double>(i) / 10.0, 1e-6);
+    EXPECT_EQ(cv::norm(wide.image, images[i], cv::NORM_INF), 0.0) << i;  // PNG is lossless
+  }
+  EXPECT_EQ(replay_camera.read(wide, 2000ms), hal::ReadStatus::kEndOfStream);
+
+  // Without a wide-angle camera in the calibration there is nowhere to put one.
+  const auto plain = openni2::test::fresh_directory("wide_plain") / "take";
+  RecordingWriter plain_writer(plain, {});
+  ASSERT_EQ(plain_writer.open(openni2::test::dummy_calibration()), "");
+  EXPECT_FALSE(plain_writer.push_wide(wide));
+  ASSERT_EQ(plain_writer.close(), "");
+  EXPECT_FALSE(std::filesystem::exists(plain / "fisheye.txt"));
+  std::filesystem::remove_all(dir.parent_path());
+  std::filesystem::remove_all(plain.parent_path());
+}
+
 TEST(RecordingWriter, RefusesANonEmptyDirectoryAndNamesIt) {
   const auto dir = openni2::test::fresh_directory("nonempty");
   std::ofstream(dir / "something.txt") << "x";

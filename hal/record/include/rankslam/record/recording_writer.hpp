@@ -25,6 +25,8 @@ struct RecordingWriterOptions {
   std::size_t can_queue = 8192;
   /// Write ir/ and ir.txt for frames that carry an IR image.
   bool write_ir = true;
+  /// Wide-angle images waiting for the writer at most (push_wide).
+  std::size_t wide_queue = 8;
   /// Write can.log (frames given to push_can) naming this interface, as candump -l does.
   bool write_can = false;
   std::string can_interface = "can0";
@@ -39,12 +41,15 @@ struct RecordingCounters {
   std::uint64_t frames_dropped = 0;  ///< Frames refused because the queue was full.
   std::uint64_t frames_failed = 0;   ///< Frames that could not be encoded or written.
   std::uint64_t ir_written = 0;      ///< IR images written.
+  std::uint64_t wide_written = 0;    ///< Wide-angle images on disk and in fisheye.txt.
+  std::uint64_t wide_dropped = 0;    ///< Wide-angle images refused: queue full, wrong size, no calibration.
+  std::uint64_t wide_failed = 0;     ///< Wide-angle images that could not be encoded or written.
   std::uint64_t can_written = 0;     ///< CAN frames in can.log.
   std::uint64_t can_dropped = 0;     ///< CAN frames refused because the queue was full.
 };
 
 /// Writes a recording directory: rgb/ and depth/ PNGs, rgb.txt, depth.txt, associations.txt,
-/// optional ir/ + ir.txt and can.log, and calibration.yaml. push() copies a frame into one of
+/// optional ir/ + ir.txt, fisheye/ + fisheye.txt and can.log, and calibration.yaml. push() copies a frame into one of
 /// the slots allocated at open() and returns at once; a writer thread encodes the PNGs and
 /// appends the index lines only after the images are completely on disk, and flushes them, so
 /// a recording stopped at any moment (a signal, a crash) is a valid recording of the frames
@@ -62,6 +67,9 @@ class RecordingWriter {
   [[nodiscard]] std::string open(const hal::Calibration& calibration);
   /// Queues a copy of `frame`; false when it was dropped (queue full, wrong size, not open).
   bool push(const hal::RgbdFrame& frame);
+  /// Queues a copy of a wide-angle image for fisheye/; false when it was dropped (queue full,
+  /// not of the calibration's cameras.fisheye size, no such camera, not open).
+  bool push_wide(const hal::ImageFrame& image);
   /// Queues a CAN frame for can.log; false when it was dropped.
   bool push_can(const hal::CanFrame& frame);
   /// Writes everything queued, closes the files and stops the writer. Empty on success,
@@ -79,11 +87,15 @@ class RecordingWriter {
     cv::Mat depth;
     cv::Mat ir;
     bool has_ir = false;
+    /// A wide-angle image slot: `rgb` holds the image; depth and IR are unused.
+    bool wide = false;
   };
 
   void writer_loop();
   /// Encodes and writes one frame; empty on success.
   std::string write_frame(Slot& slot);
+  /// Encodes and writes one wide-angle image; empty on success.
+  std::string write_wide(Slot& slot);
   std::string write_png(const std::filesystem::path& path, const cv::Mat& image);
   void write_can_lines();
 
@@ -95,7 +107,8 @@ class RecordingWriter {
   std::vector<std::size_t> ready_;  // ring of slot indices, oldest first
   std::size_t ready_head_ = 0;
   std::size_t ready_count_ = 0;
-  std::vector<std::size_t> free_;   // stack of free slot indices
+  std::vector<std::size_t> free_;   // stack of free RGB-D slot indices
+  std::vector<std::size_t> wide_free_;  // stack of free wide-angle slot indices (after the RGB-D ones)
   std::vector<hal::CanFrame> can_ring_;
   std::size_t can_head_ = 0;
   std::size_t can_count_ = 0;
@@ -116,6 +129,7 @@ class RecordingWriter {
   std::FILE* depth_index_ = nullptr;
   std::FILE* associations_ = nullptr;
   std::FILE* ir_index_ = nullptr;
+  std::FILE* wide_index_ = nullptr;
   std::FILE* can_log_ = nullptr;
 };
 
