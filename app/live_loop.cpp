@@ -21,6 +21,11 @@ bool run_live_loop(const LiveLoopParts& parts, const std::function<bool()>& stop
   const auto update_totals = [&] {
     totals.counts = pipeline.status_counts();
     totals.keyframes = pipeline.loop().keyframes();
+    if (parts.wide != nullptr) {
+      totals.wide = true;
+      totals.wide_images = parts.wide->counters().read;
+      totals.wide_paired = parts.wide->counters().paired;
+    }
     if (parts.checkpointer != nullptr) {
       const Checkpointer::Tally tally = parts.checkpointer->tally();
       totals.checkpoints = true;
@@ -34,6 +39,11 @@ bool run_live_loop(const LiveLoopParts& parts, const std::function<bool()>& stop
 
   hal::RgbdFrame frame;
   bool interrupted = false;
+  // The wide-angle camera's last image (read, paired or not) and the fault bit last posted.
+  std::int64_t wide_alive_ns = clock.now_ns();
+  std::uint64_t wide_images = 0;
+  bool wide_fault = parts.wide != nullptr && !parts.wide_camera_open;
+  mailbox.set_wide_camera_fault(wide_fault);
   std::optional<std::chrono::steady_clock::time_point> end_time;
   for (;;) {
     const std::int64_t turn_ns = clock.now_ns();
@@ -70,6 +80,25 @@ bool run_live_loop(const LiveLoopParts& parts, const std::function<bool()>& stop
       continue;
     }
     const std::int64_t capture_ns = clock.now_ns();
+    if (parts.wide != nullptr && parts.wide_camera_open) {
+      (void)parts.wide->take(frame.stamp_ns, parts.wide_wait);
+      if (parts.wide_replay != nullptr) {
+        for (const auto& warning : parts.wide_replay->take_warnings()) std::cerr << "warning: " << warning << "\n";
+      }
+      if (parts.wide->counters().read != wide_images) {
+        wide_images = parts.wide->counters().read;
+        wide_alive_ns = capture_ns;
+      }
+      // A dead or silent wide-angle camera costs its images, never the loop: the bit tells.
+      const bool fault = !parts.wide->ended() && (parts.wide->last_status() == hal::ReadStatus::kFault ||
+                                                  capture_ns - wide_alive_ns > parts.wide_silence_ns);
+      if (fault != wide_fault) {
+        wide_fault = fault;
+        mailbox.set_wide_camera_fault(fault);
+        std::cerr << (fault ? "warning: the wide-angle camera failed or went silent; RGB-D only\n"
+                            : "the wide-angle camera sends images again\n");
+      }
+    }
     const slam::FrameResult result = pipeline.process(frame);
     const bool registered =
         result.status == slam::FrameStatus::kTracking || result.status == slam::FrameStatus::kFirstFrame;

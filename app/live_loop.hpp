@@ -5,6 +5,7 @@
 #include "status_line.hpp"
 
 #include "rankslam/hal/interfaces.hpp"
+#include "rankslam/hal/nearest_image.hpp"
 #include "rankslam/nav/pose_output.hpp"
 
 #include <Eigen/Geometry>
@@ -13,6 +14,7 @@
 
 namespace rankslam::replay {
 class ReplayDepthCamera;
+class ReplayStream;
 }
 namespace rankslam::systemd {
 class ServiceNotifier;
@@ -39,6 +41,17 @@ struct LiveLoopParts {
   StatusLine* status_line = nullptr;
   /// Optional: offered every processed frame (map.checkpoint_s).
   Checkpointer* checkpointer = nullptr;
+  /// Optional: the wide-angle camera's images, paired with each frame; each read waits at most
+  /// `wide_wait` (0 for a live or paced camera). `wide_camera_open`: false when it failed to
+  /// open, and the heartbeat says so for the whole run.
+  hal::NearestImage* wide = nullptr;
+  /// The same camera's replay, whose warnings are printed; else null.
+  replay::ReplayStream* wide_replay = nullptr;
+  std::chrono::milliseconds wide_wait{0};
+  bool wide_camera_open = true;
+  /// A failed read, or no wide-angle image for this long (output.watchdog_timeout_s), sets the
+  /// heartbeat's WideCameraFault.
+  std::int64_t wide_silence_ns = 500'000'000;
 };
 
 /// Camera → SLAM loop → pose mailbox until `stop()` returns true or the recording has ended

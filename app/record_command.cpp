@@ -120,12 +120,31 @@ int run_record(const RecordArgs& args) {
     calibration.rgb.T_base_cam = *robot.camera_mounting;
     calibration.rgb.T_base_cam_given = true;
   }
+  // The wide-angle camera: wide_camera.device, or a replayed recording's wide-angle images.
+  std::unique_ptr<hal::Camera> wide_camera;
+  std::string wide_name;
+  {
+    replay::ReplayOptions wide_options;
+    wide_options.rate = robot.replay_rate;
+    if (auto error = make_wide_camera(robot, calibration, replay_camera != nullptr ? &source_recording : nullptr,
+                                      wide_options, wide_camera, wide_name);
+        !error.empty()) {
+      std::cerr << "error: " << args.config.string() << ": " << error << "\n";
+      return kExitInput;
+    }
+  }
+  if (wide_camera) {
+    if (auto error = wide_camera->open(); !error.empty()) {
+      std::cerr << "error: wide-angle camera " << wide_name << ": " << error << "\n";
+      return kExitInput;
+    }
+  }
   if (auto error = writer.open(calibration); !error.empty()) {
     std::cerr << "error: " << error << "\n";
     return kExitOutput;
   }
-  std::cout << "recording " << camera_name << (bus ? " and CAN " + robot.can_interface : std::string()) << " into "
-            << args.out.string() << std::endl;
+  std::cout << "recording " << camera_name << (wide_camera ? ", wide-angle " + wide_name : std::string())
+            << (bus ? " and CAN " + robot.can_interface : std::string()) << " into " << args.out.string() << std::endl;
 
   const RecordStopSignals signals;
   std::atomic<bool> stop_can{false};
@@ -139,6 +158,28 @@ int run_record(const RecordArgs& args) {
           (void)writer.push_can(can_frame);
         } else if (status == hal::ReadStatus::kFault) {
           std::this_thread::sleep_for(std::chrono::milliseconds(50));  // the bus reopens on its own
+        }
+      }
+    });
+  }
+
+  // The wide-angle camera is read on its own thread: its rate and faults never hold up the RGB-D frames.
+  std::atomic<bool> stop_wide{false};
+  std::atomic<std::uint64_t> wide_images{0};
+  std::atomic<std::uint64_t> wide_faults{0};
+  std::thread wide_reader;
+  if (wide_camera) {
+    wide_reader = std::thread([&] {
+      hal::ImageFrame image;
+      while (!stop_wide.load()) {
+        const hal::ReadStatus status = wide_camera->read(image, std::chrono::milliseconds(100));
+        if (status == hal::ReadStatus::kOk) {
+          ++wide_images;
+          (void)writer.push_wide(image);  // a full queue drops the image; counted by the writer
+        } else if (status == hal::ReadStatus::kEndOfStream) {
+          break;
+        } else if (status == hal::ReadStatus::kFault) {
+          ++wide_faults;
         }
       }
     });
@@ -174,6 +215,10 @@ int run_record(const RecordArgs& args) {
 
   stop_can = true;
   if (can_reader.joinable()) can_reader.join();
+  // A played recording's wide-angle images are recorded to their end too.
+  if (!end_of_stream || dynamic_cast<replay::ReplayStream*>(wide_camera.get()) == nullptr) stop_wide = true;
+  if (wide_reader.joinable()) wide_reader.join();
+  if (wide_camera) wide_camera->close();
   if (bus) bus->close();
   camera->close();
   const std::string write_error = writer.close();
@@ -191,8 +236,17 @@ int run_record(const RecordArgs& args) {
                 static_cast<unsigned long long>(c.dropped), static_cast<unsigned long long>(c.unpaired),
                 static_cast<unsigned long long>(c.faults), static_cast<unsigned long long>(c.reopens));
   }
+  if (wide_camera) {
+    std::printf("wide-angle images captured %llu  written %llu  dropped %llu  failed %llu  camera faults %llu\n",
+                static_cast<unsigned long long>(wide_images.load()), static_cast<unsigned long long>(counters.wide_written),
+                static_cast<unsigned long long>(counters.wide_dropped), static_cast<unsigned long long>(counters.wide_failed),
+                static_cast<unsigned long long>(wide_faults.load()));
+  }
   if (replay_camera != nullptr) {
     for (const auto& warning : replay_camera->take_warnings()) std::cerr << "warning: " << warning << "\n";
+  }
+  if (auto* stream = dynamic_cast<replay::ReplayStream*>(wide_camera.get()); stream != nullptr) {
+    for (const auto& warning : stream->take_warnings()) std::cerr << "warning: " << warning << "\n";
   }
   if (!write_error.empty()) {
     std::cerr << "error: " << write_error << "\n";

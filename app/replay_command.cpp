@@ -4,6 +4,7 @@
 #include "exit_codes.hpp"
 #include "frame_pipeline.hpp"
 #include "progress.hpp"
+#include "robot_config.hpp"
 #include "stop_signals.hpp"
 #include "rankslam/nav/wheel_frame.hpp"
 #include "rankslam/nav/wheel_prior.hpp"
@@ -14,12 +15,14 @@
 #include "rankslam/eval/run_report.hpp"
 #include "rankslam/eval/trajectory.hpp"
 #include "rankslam/hal/file_set.hpp"
+#include "rankslam/hal/nearest_image.hpp"
 #include "rankslam/replay/replay_camera.hpp"
 #include "rankslam/replay/replay_can_bus.hpp"
 #include "rankslam/sim/simulator.hpp"
 #include "rankslam/slam/slam_loop.hpp"
 
 #include <algorithm>
+#include <cmath>
 #include <cstdint>
 #include <cstdio>
 #include <iostream>
@@ -94,6 +97,29 @@ int run_replay(const ReplayArgs& args) {
               << describe_slam_config(config);
   }
 
+  // The wide-angle camera's images, paired with the colour frames by nearest stamp. All of them
+  // are read: the pairing stops where the colour frames end.
+  std::unique_ptr<hal::Camera> wide_camera;
+  std::string wide_description;
+  (void)make_wide_camera(RobotConfig{}, recording.calibration, &recording, options, wide_camera, wide_description);
+  // The replay camera's warnings and counters.
+  auto* wide_stream = dynamic_cast<replay::ReplayStream*>(wide_camera.get());
+  std::optional<hal::NearestImage> wide;
+  if (wide_camera) {
+    if (auto error = wide_camera->open(); !error.empty()) {
+      std::cerr << "error: " << error << "\n";
+      return kExitInput;
+    }
+    wide.emplace(*wide_camera, std::llround(replay::kMaxAssociationGap_s * 1e9));
+    wide->allocate(recording.calibration.fisheye->width, recording.calibration.fisheye->height, CV_8UC3);
+    if (!args.quiet) {
+      std::cout << "wide-angle camera: " << wide_description << ", paired with frames within "
+                << replay::kMaxAssociationGap_s << " s\n";
+    }
+  }
+  // A lossless replay waits for the image after each frame; a paced one takes what has arrived.
+  const auto wide_wait = std::chrono::milliseconds(args.rate > 0.0 ? 0 : 1000);
+
   // Wheel odometry from the recording's can.log, when it has one and the calibration describes
   // the wheels: the prior of every frame.
   std::optional<nav::WheelPrior> wheels;
@@ -157,6 +183,10 @@ int run_replay(const ReplayArgs& args) {
     for (const auto& warning : camera.take_warnings()) std::cerr << "\nwarning: " << warning << "\n";
     if (status == hal::ReadStatus::kEndOfStream) break;
     if (status != hal::ReadStatus::kOk) continue;
+    if (wide) {
+      (void)wide->take(frame.stamp_ns, wide_wait);
+      for (const auto& warning : wide_stream->take_warnings()) std::cerr << "\nwarning: " << warning << "\n";
+    }
     (void)pipeline.process(frame);
     progress.update(static_cast<unsigned>(pipeline.frames()));
   }
@@ -169,6 +199,12 @@ int run_replay(const ReplayArgs& args) {
   const replay::ReplayCounters counters = camera.counters();
   for (const auto& warning : camera.take_warnings()) std::cerr << "warning: " << warning << "\n";
   camera.close();
+  std::optional<replay::ReplayCounters> wide_counters;
+  if (wide_camera) {
+    wide_camera->close();
+    for (const auto& warning : wide_stream->take_warnings()) std::cerr << "warning: " << warning << "\n";
+    wide_counters = wide_stream->counters();
+  }
   if (!interrupted && counters.delivered == 0) {
     std::cerr << "error: no frame of " << recording.root.string() << " could be read (" << counters.corrupt
               << " skipped, see the warnings above)\n";
@@ -255,6 +291,15 @@ int run_replay(const ReplayArgs& args) {
   json.integer("dropped_frames", counters.dropped);
   json.boolean("decode_ahead", args.decode_ahead);
   eval::write_status_and_wheels(json, pipeline.status_counts(), wheels ? &*wheels : nullptr, loop.wheel_slip_events(), wheels_off_reason);
+  if (wide) {
+    json.begin_object("wide_angle");
+    json.integer("images", static_cast<long long>(wide->counters().read));
+    json.integer("paired", static_cast<long long>(wide->counters().paired));
+    json.integer("skipped", wide_counters->corrupt);
+    json.end_object();
+  } else {
+    json.null("wide_angle");
+  }
   json.integer("keyframes", loop.keyframes());
   json.integer("loop_closures", loop.loop_closures());
   json.integer("loop_closures_refuted", loop.loop_closures_refuted());
@@ -342,6 +387,11 @@ int run_replay(const ReplayArgs& args) {
                 pipeline.status_counts().disagreements);
   } else {
     std::printf("  (no wheels: %s)\n", wheels_off_reason.c_str());
+  }
+  if (wide) {
+    std::printf("wide-angle images %llu  paired with frames %llu  skipped %u (not used by the SLAM loop yet)\n",
+                static_cast<unsigned long long>(wide->counters().read),
+                static_cast<unsigned long long>(wide->counters().paired), wide_counters->corrupt);
   }
   std::printf("loop closures %d (%d refuted by their neighbours)", loop.loop_closures(), loop.loop_closures_refuted());
   if (checked_closures > 0) {

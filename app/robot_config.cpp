@@ -20,6 +20,7 @@ namespace {
 const std::map<std::string, std::set<std::string>> kKeys = {
     {"robot", {"name"}},
     {"camera", {"source", "replay_rate", "max_frames", "exit_after_end_s", "calibration", "mounting", "width", "height", "fps", "ir"}},
+    {"wide_camera", {"device", "width", "height", "fps", "format"}},
     {"can", {"interface", "play_wheel_frames"}},
     {"output", {"pose_rate_hz", "heartbeat_rate_hz", "watchdog_timeout_s", "lost_after_failed_frames", "wheel_propagation", "dir",
                 "max_trajectory_poses", "realtime_priority", "status_interval_s"}},
@@ -119,6 +120,17 @@ std::string load_robot_config(const std::filesystem::path& path, RobotConfig& co
   check(read_number(camera, "camera", "fps", 1, 240, config.camera_fps));
   check(read(camera, "camera", "ir", config.camera_ir));
 
+  if (const YAML::Node wide = root["wide_camera"]; wide) {
+    check(read(wide, "wide_camera", "device", config.wide_device));
+    check(read_number(wide, "wide_camera", "width", 1, 4096, config.wide_width));
+    check(read_number(wide, "wide_camera", "height", 1, 4096, config.wide_height));
+    check(read_number(wide, "wide_camera", "fps", 0, 240, config.wide_fps));
+    check(read(wide, "wide_camera", "format", config.wide_format));
+    if (error.empty() && config.wide_format != "auto" && config.wide_format != "yuyv" && config.wide_format != "mjpeg") {
+      error = file + "wide_camera.format must be auto, yuyv or mjpeg, not '" + config.wide_format + "'";
+    }
+  }
+
   const YAML::Node can = root["can"];
   if (can) {
     check(read(can, "can", "interface", config.can_interface));
@@ -174,6 +186,9 @@ std::string describe_robot_config(const RobotConfig& config) {
        << "  # T_base_cam, camera optical frame -> base\n"
        << "camera.mode = " << config.camera_width << "x" << config.camera_height << "@" << config.camera_fps
        << (config.camera_ir ? " + IR" : "") << "  # openni2 only\n"
+       << "wide_camera.device = " << config.wide_device << "  # V4L2; empty = none (replay: the recording's wide-angle images)\n"
+       << "wide_camera.mode = " << config.wide_width << "x" << config.wide_height << "@" << config.wide_fps << " "
+       << config.wide_format << "\n"
        << "camera.replay_rate = " << config.replay_rate << "  # x recorded rate, 0 = lossless\n"
        << "camera.max_frames = " << config.max_frames << "  # 0 = all\n"
        << "camera.exit_after_end_s = " << config.exit_after_end_s << " s  # negative = until SIGINT/SIGTERM\n"

@@ -5,6 +5,7 @@
 #include <Eigen/Geometry>
 
 #include <filesystem>
+#include <memory>
 #include <optional>
 #include <set>
 #include <string>
@@ -37,6 +38,15 @@ struct RobotConfig {
   int camera_height = 480;
   int camera_fps = 30;
   bool camera_ir = false;
+  /// wide_camera.device: V4L2 node of the wide-angle camera (/dev/videoN); empty = none, and a
+  /// replay source plays its recording's wide-angle images. Its calibration is camera.calibration's
+  /// cameras.fisheye.
+  std::string wide_device;
+  /// wide_camera.width/height/fps: the V4L2 mode; wide_camera.format: auto, yuyv or mjpeg.
+  int wide_width = 640;
+  int wide_height = 480;
+  int wide_fps = 30;
+  std::string wide_format = "auto";
   /// camera.replay_rate: multiple of the recorded frame rate; 0 = lossless, as fast as the loop runs.
   double replay_rate = 1.0;
   /// camera.max_frames: replay at most this many frames, 0 = all.
@@ -71,7 +81,7 @@ struct RobotConfig {
   double checkpoint_s = 30.0;
 };
 
-/// The top-level sections load_robot_config reads (robot, camera, can, output, map); the file's
+/// The top-level sections load_robot_config reads (robot, camera, wide_camera, can, output, map); the file's
 /// `slam:`, `geometry:` and `wheel_odometry:` are load_pipeline_config's.
 [[nodiscard]] const std::set<std::string>& robot_config_sections();
 
@@ -88,11 +98,34 @@ struct RobotConfig {
 namespace rankslam::openni2 {
 struct OpenNI2Options;
 }
+namespace rankslam::v4l2 {
+struct V4l2Options;
+}
+namespace rankslam::hal {
+class Camera;
+struct Calibration;
+}
+namespace rankslam::replay {
+struct Recording;
+struct ReplayOptions;
+}
 
 namespace rankslam::app {
 
 /// OpenNI2 driver options for a robot configuration with camera.source openni2: (reads
 /// camera.calibration when given). Empty string on success, else the error naming the file.
 [[nodiscard]] std::string openni2_options_from(const RobotConfig& config, openni2::OpenNI2Options& options);
+
+/// V4L2 driver options for the robot configuration's wide_camera.
+[[nodiscard]] v4l2::V4l2Options v4l2_options_from(const RobotConfig& config);
+
+/// The wide-angle camera a robot configuration names, built but not opened, into `camera`:
+/// wide_camera.device over V4L2 (with a live RGB-D camera: the stamps of both are CLOCK_MONOTONIC),
+/// whose calibration (`calibration`'s cameras.fisheye) must have the configured size; else the recorded wide-angle images of a replay source (`recording`, null
+/// for a live camera), paced by `replay_options`; else none (`camera` empty). `description`
+/// names it. Empty on success, else the error naming the configuration key.
+[[nodiscard]] std::string make_wide_camera(const RobotConfig& config, const hal::Calibration& calibration,
+                                           const replay::Recording* recording, const replay::ReplayOptions& replay_options,
+                                           std::unique_ptr<hal::Camera>& camera, std::string& description);
 
 }  // namespace rankslam::app

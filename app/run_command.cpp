@@ -14,6 +14,7 @@
 #include "rankslam/eval/run_report.hpp"
 #include "rankslam/eval/trajectory.hpp"
 #include "rankslam/hal/file_set.hpp"
+#include "rankslam/hal/nearest_image.hpp"
 #include "rankslam/hal/thread_priority.hpp"
 #include "rankslam/nav/pose_output.hpp"
 #include "rankslam/openni2/openni2_camera.hpp"
@@ -21,10 +22,12 @@
 #include "rankslam/slam/slam_loop.hpp"
 #include "rankslam/socketcan/socketcan_bus.hpp"
 #include "rankslam/systemd/service_notifier.hpp"
+#include "rankslam/v4l2/v4l2_camera.hpp"
 
 #include <unistd.h>
 
 #include <atomic>
+#include <cmath>
 #include <chrono>
 #include <cstdio>
 #include <future>
@@ -146,6 +149,36 @@ int run_live(const RunArgs& args) {
     probe.close();
   }
 
+  // The wide-angle camera; one that does not open leaves the run to the RGB-D camera.
+  std::unique_ptr<hal::Camera> wide_camera;
+  std::string wide_name;
+  {
+    replay::ReplayOptions wide_options;
+    wide_options.rate = robot.replay_rate;
+    if (auto error = make_wide_camera(robot, calibration, replay_camera != nullptr ? &recording : nullptr, wide_options,
+                                      wide_camera, wide_name);
+        !error.empty()) {
+      std::cerr << "error: " << args.config.string() << ": " << error << "\n";
+      return kExitInput;
+    }
+  }
+  bool wide_open = true;
+  std::optional<hal::NearestImage> wide;
+  if (wide_camera) {
+    if (auto error = wide_camera->open(); !error.empty()) {
+      std::cerr << "warning: wide-angle camera " << wide_name << ": " << error
+                << "; running on the RGB-D camera alone (heartbeat WideCameraFault)\n";
+      wide_open = false;
+    }
+    wide.emplace(*wide_camera, std::llround(replay::kMaxAssociationGap_s * 1e9));
+    wide->allocate(calibration.fisheye->width, calibration.fisheye->height, CV_8UC3);
+    // A live camera is read on a thread of its own, however slow the loop; a replay by the loop.
+    if (wide_open && dynamic_cast<replay::ReplayStream*>(wide_camera.get()) == nullptr) {
+      wide->start_reader(std::chrono::milliseconds(100));
+    }
+    notifier.alive(setup_clock.now_ns());
+  }
+
   std::cout << "robot configuration " << args.config.string() << "\n"
             << describe_robot_config(robot) << "camera: "
             << (openni2_camera != nullptr ? openni2_camera->describe()
@@ -153,6 +186,7 @@ int run_live(const RunArgs& args) {
                                                 std::to_string(replay_camera->frame_count()) + " frames, " +
                                                 std::to_string(recording.can_frames.size()) + " CAN frames")
             << ", calibration " << calibration.source << "\n"
+            << "wide-angle camera: " << (wide_camera ? wide_name : std::string("none")) << "\n"
             << describe_slam_config(slam_config) << std::flush;
 
 
@@ -290,6 +324,12 @@ int run_live(const RunArgs& args) {
   parts.notifier = &notifier;
   parts.status_line = &status_line;
   parts.checkpointer = checkpointer ? &*checkpointer : nullptr;
+  parts.wide = wide ? &*wide : nullptr;
+  parts.wide_replay = dynamic_cast<replay::ReplayStream*>(wide_camera.get());
+  // A lossless replay waits for each frame's image; a live or paced camera is asked for what has come.
+  parts.wide_wait = std::chrono::milliseconds(parts.wide_replay != nullptr && robot.replay_rate == 0.0 ? 1000 : 0);
+  parts.wide_camera_open = wide_open;
+  parts.wide_silence_ns = static_cast<std::int64_t>(robot.output.watchdog_timeout_s * 1e9);
   const bool interrupted = run_live_loop(parts, [] { return stop_requested(); });
   Checkpointer::Counters checkpoint_counters;
   if (checkpointer) {
@@ -306,6 +346,8 @@ int run_live(const RunArgs& args) {
   sender.join();
   const replay::ReplayCounters replay_counters = replay_camera != nullptr ? replay_camera->counters() : replay::ReplayCounters{};
   camera.close();
+  if (wide) wide->stop_reader();
+  if (wide_camera) wide_camera->close();
 
   // Outputs: one set published at the end, so OUT holds this run's files or the previous run's.
   hal::FileSet outputs(out);
@@ -347,6 +389,21 @@ int run_live(const RunArgs& args) {
     json.integer("camera_unpaired", static_cast<long long>(c.unpaired));
     json.integer("camera_faults", static_cast<long long>(c.faults));
     json.integer("camera_reopens", static_cast<long long>(c.reopens));
+  }
+  if (wide) {
+    json.begin_object("wide_angle");
+    json.string("camera", wide_name);
+    json.boolean("opened", wide_open);
+    json.integer("images", static_cast<long long>(wide->counters().read));
+    json.integer("paired", static_cast<long long>(wide->counters().paired));
+    json.integer("faults", static_cast<long long>(wide->counters().faults));
+    if (const auto* device = dynamic_cast<const v4l2::V4l2Camera*>(wide_camera.get()); device != nullptr) {
+      json.integer("device_dropped", static_cast<long long>(device->counters().dropped));
+      json.integer("device_corrupt", static_cast<long long>(device->counters().corrupt));
+    }
+    json.end_object();
+  } else {
+    json.null("wide_angle");
   }
   json.string("can_interface", robot.can_interface);
   json.integer("frames", static_cast<long long>(pipeline.frames()));

@@ -52,6 +52,13 @@ bool StatusLine::tick(std::int64_t now_ns, const StatusTotals& totals) {
         static_cast<unsigned long long>(totals.checkpoints_failed - last_.checkpoints_failed));
     if (more > 0) written += more;
   }
+  if (totals.wide && written > 0 && static_cast<std::size_t>(written) < sizeof line_) {
+    const int more = std::snprintf(
+        line_ + written, sizeof line_ - static_cast<std::size_t>(written), ", wide-angle images %llu, paired %llu",
+        static_cast<unsigned long long>(totals.wide_images - last_.wide_images),
+        static_cast<unsigned long long>(totals.wide_paired - last_.wide_paired));
+    if (more > 0) written += more;
+  }
   length_ = written < 0 ? 0 : std::min(static_cast<std::size_t>(written), sizeof line_ - 2);
   line_[length_] = '\n';
   // One write per line, so lines from other threads do not interleave with it; a short or failed

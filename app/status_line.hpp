@@ -16,11 +16,15 @@ struct StatusTotals {
   bool checkpoints = false;              ///< Checkpoints are on: the line shows theirs.
   std::uint64_t checkpoints_written = 0;
   std::uint64_t checkpoints_failed = 0;
+  bool wide = false;                     ///< A wide-angle camera is on: the line shows its images.
+  std::uint64_t wide_images = 0;         ///< Its images read.
+  std::uint64_t wide_paired = 0;         ///< Of those, paired with a frame.
 };
 
 /// The journal's view of `rankslam run`: every `interval_ns` one line on `fd` (stderr) with the
 /// frame rate, the frames by status and the camera reads without a frame over the interval,
-/// the key-frames and the resident memory, and with checkpoints those written and failed.
+/// the key-frames and the resident memory, with checkpoints those written and failed, and with a
+/// wide-angle camera its images read and paired with frames.
 /// Called from the SLAM loop's thread (never from the pose output's real-time one); formats into
 /// a fixed buffer and writes with write(2): no allocation, and a turn without a line is one
 /// compare.

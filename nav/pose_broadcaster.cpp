@@ -86,9 +86,10 @@ void PoseBroadcaster::update(const PoseSample& sample) {
   ++frames_since_heartbeat_;
 }
 
-void PoseBroadcaster::set_camera_state(bool fault, bool end_of_stream) {
+void PoseBroadcaster::set_camera_state(bool fault, bool end_of_stream, bool wide_fault) {
   camera_fault_ = fault;
   end_of_stream_ = end_of_stream;
+  wide_camera_fault_ = wide_fault;
 }
 
 bool PoseBroadcaster::watchdog_expired(std::int64_t now_ns) const { return now_ns - last_frame_ns_ > watchdog_ns_; }
@@ -175,6 +176,7 @@ void PoseBroadcaster::send_heartbeat(std::int64_t now_ns) {
   heartbeat.camera_watchdog = watchdog_expired(now_ns);
   heartbeat.can_tx_dropped = dropped_since_heartbeat_;
   heartbeat.end_of_stream = end_of_stream_;
+  heartbeat.wide_camera_fault = wide_camera_fault_;
   const double elapsed_s = static_cast<double>(now_ns - last_heartbeat_ns_) * 1e-9;
   const double rate = elapsed_s > 0.0 ? static_cast<double>(frames_since_heartbeat_) / elapsed_s : 0.0;
   heartbeat.frames_per_s = static_cast<std::uint8_t>(std::clamp(std::round(rate), 0.0, 255.0));

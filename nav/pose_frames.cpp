@@ -171,6 +171,7 @@ hal::CanFrame encode_heartbeat(const Heartbeat& heartbeat, std::int64_t stamp_ns
   put_unsigned(word, 41, 1, heartbeat.camera_watchdog ? 1U : 0U);
   put_unsigned(word, 42, 1, heartbeat.can_tx_dropped ? 1U : 0U);
   put_unsigned(word, 43, 1, heartbeat.end_of_stream ? 1U : 0U);
+  put_unsigned(word, 44, 1, heartbeat.wide_camera_fault ? 1U : 0U);
   put_unsigned(word, 48, 8, heartbeat.frames_per_s);
   put_unsigned(word, 56, 8, heartbeat.counter);
   return store_word(word, kHeartbeatId, stamp_ns);
@@ -239,6 +240,7 @@ std::optional<Heartbeat> decode_heartbeat(const hal::CanFrame& frame) {
   heartbeat.camera_watchdog = get_unsigned(word, 41, 1) != 0;
   heartbeat.can_tx_dropped = get_unsigned(word, 42, 1) != 0;
   heartbeat.end_of_stream = get_unsigned(word, 43, 1) != 0;
+  heartbeat.wide_camera_fault = get_unsigned(word, 44, 1) != 0;
   heartbeat.frames_per_s = static_cast<std::uint8_t>(get_unsigned(word, 48, 8));
   heartbeat.counter = static_cast<std::uint8_t>(get_unsigned(word, 56, 8));
   return heartbeat;

@@ -27,6 +27,11 @@ void PoseMailbox::set_end_of_stream() {
   end_of_stream_ = true;
 }
 
+void PoseMailbox::set_wide_camera_fault(bool fault) {
+  std::lock_guard lock(mutex_);
+  wide_camera_fault_ = fault;
+}
+
 void PoseMailbox::deliver(PoseBroadcaster& broadcaster, std::optional<std::int64_t>& wheel_stamp_ns) {
   std::lock_guard lock(mutex_);
   if (sample_count_ != delivered_count_ && sample_) {
@@ -37,7 +42,7 @@ void PoseMailbox::deliver(PoseBroadcaster& broadcaster, std::optional<std::int64
     wheel_stamp_ns = wheel_stamp_ns_;
     broadcaster.update(sample);
   }
-  broadcaster.set_camera_state(camera_fault_, end_of_stream_);
+  broadcaster.set_camera_state(camera_fault_, end_of_stream_, wide_camera_fault_);
 }
 
 PoseOutput::PoseOutput(const PoseOutputOptions& options, hal::CanBus& bus, const hal::Clock& clock,

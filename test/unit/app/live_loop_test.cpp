@@ -270,6 +270,69 @@ TEST_F(LiveLoopTest, WatchdogFollowsTheLoopNotTheCamera) {
   camera.close();
 }
 
+// A wide-angle camera that delivers `live_reads` images, then faults on every read, as an
+// unplugged device does.
+class DyingImageCamera final : public hal::Camera {
+ public:
+  DyingImageCamera(replay::ReplayImageCamera& replay, int live_reads) : replay_(replay), live_reads_(live_reads) {}
+  std::string open() override { return replay_.open(); }
+  void close() override { replay_.close(); }
+  hal::ReadStatus read(hal::ImageFrame& frame, std::chrono::milliseconds wait) override {
+    if (reads_++ >= live_reads_) return hal::ReadStatus::kFault;
+    return replay_.read(frame, wait);
+  }
+
+ private:
+  replay::ReplayImageCamera& replay_;
+  int live_reads_;
+  int reads_ = 0;
+};
+
+// A wide-angle camera that dies costs its images, never the loop: every frame is processed, the
+// images before the death were paired with their frames, and the journal says RGB-D only.
+TEST_F(LiveLoopTest, AWideAngleCameraThatDiesLeavesTheLoopToTheRgbdCamera) {
+  sim::SimulationOptions simulation;
+  simulation.scene = "corridor-loop";
+  simulation.out_dir = dir_ / "recording";
+  simulation.frames = 15;  // wide-angle images at frames 0, 3, 6, 9, 12
+  ASSERT_EQ(sim::simulate_recording(simulation, nullptr), "");
+  replay::Recording recording;
+  ASSERT_EQ(replay::open_recording(simulation.out_dir, recording), "");
+  ASSERT_EQ(recording.fisheye.size(), 5U);
+  replay::ReplayDepthCamera camera(recording, {});
+  ASSERT_EQ(camera.open(), "");
+  replay::ReplayImageCamera images(recording, {});
+  DyingImageCamera wide_camera(images, 3);
+  ASSERT_EQ(wide_camera.open(), "");
+  hal::NearestImage wide(wide_camera, 20'000'000);
+  wide.allocate(recording.calibration.fisheye->width, recording.calibration.fisheye->height, CV_8UC3);
+
+  PipelineOptions pipeline_options;
+  pipeline_options.max_frames = 100;
+  FramePipeline pipeline(slam::SlamConfig{}, camera.calibration(), nullptr, pipeline_options);
+  nav::PoseMailbox mailbox;
+  LiveLoopParts parts;
+  parts.camera = &camera;
+  parts.pipeline = &pipeline;
+  parts.mailbox = &mailbox;
+  parts.exit_after_end_s = 0.0;
+  parts.wide = &wide;
+  parts.wide_wait = std::chrono::milliseconds(2000);
+  parts.wide_silence_ns = 3'600'000'000'000;  // only the failed reads tell here
+  std::ostringstream err;
+  std::streambuf* const old_err = std::cerr.rdbuf(err.rdbuf());
+  const bool interrupted = run_live_loop(parts, [] { return false; });
+  std::cerr.rdbuf(old_err);
+  EXPECT_FALSE(interrupted);
+  EXPECT_EQ(pipeline.frames(), 15U);
+  EXPECT_EQ(wide.counters().read, 3U);
+  EXPECT_EQ(wide.counters().paired, 3U);
+  EXPECT_GE(wide.counters().faults, 8U);  // asked again at every frame after the last image
+  EXPECT_NE(err.str().find("wide-angle camera failed or went silent; RGB-D only"), std::string::npos) << err.str();
+  camera.close();
+  wide_camera.close();
+}
+
 // The unit's instance reaches `run` as --can-interface: it is the interface used, and one that
 // differs from the file's is said. The host has no CAN interface: the start-up error names it.
 // Checkpoints (map.checkpoint_s): the loop's thread only copies (no allocation) and goes on; the

@@ -1,5 +1,6 @@
 #include "rankslam/nav/pose_broadcaster.hpp"
 #include "rankslam/nav/pose_frames.hpp"
+#include "rankslam/nav/pose_output.hpp"
 #include "rankslam/nav/pose_uncertainty.hpp"
 
 #include "allocation_counter.hpp"
@@ -118,7 +119,7 @@ TEST(PoseFrames, QualityAndHeartbeatRoundTrip) {
   EXPECT_FALSE(unknown->inlier_percent);
   EXPECT_EQ(unknown->status, PoseStatus::kInitialising);
 
-  Heartbeat heartbeat{4'000'000'000U, PoseStatus::kLost, true, true, false, true, 30, 255};
+  Heartbeat heartbeat{4'000'000'000U, PoseStatus::kLost, true, true, false, true, true, 30, 255};
   const auto h = decode_heartbeat(encode_heartbeat(heartbeat, 0));
   ASSERT_TRUE(h);
   EXPECT_EQ(h->uptime_ms, 4'000'000'000U);
@@ -127,6 +128,7 @@ TEST(PoseFrames, QualityAndHeartbeatRoundTrip) {
   EXPECT_TRUE(h->camera_watchdog);
   EXPECT_FALSE(h->can_tx_dropped);
   EXPECT_TRUE(h->end_of_stream);
+  EXPECT_TRUE(h->wide_camera_fault);
   EXPECT_EQ(h->frames_per_s, 30);
   EXPECT_EQ(h->counter, 255);
 }
@@ -278,6 +280,31 @@ TEST(PoseBroadcaster, SendsPoseCyclesAndHeartbeatsAtTheirRates) {
     EXPECT_EQ(h[i].counter, i);
     EXPECT_EQ(h[i].uptime_ms, 100 * i);
   }
+}
+
+// The SLAM thread's wide-angle camera state reaches the heartbeat through the mailbox, both ways.
+TEST(PoseBroadcaster, TheMailboxCarriesTheWideCameraFaultToTheHeartbeat) {
+  RecordingBus bus;
+  ManualClock clock;
+  PoseOutputConfig config;
+  config.watchdog_timeout_s = 10.0;
+  PoseBroadcaster broadcaster(config, bus, clock);
+  PoseMailbox mailbox;
+  std::optional<std::int64_t> wheel_stamp_ns;
+  mailbox.set_wide_camera_fault(true);
+  mailbox.deliver(broadcaster, wheel_stamp_ns);
+  run_for(broadcaster, clock, 300);
+  auto h = heartbeats(bus.sent);
+  ASSERT_FALSE(h.empty());
+  EXPECT_TRUE(h.back().wide_camera_fault);
+  EXPECT_FALSE(h.back().camera_fault);
+  mailbox.set_wide_camera_fault(false);
+  mailbox.deliver(broadcaster, wheel_stamp_ns);
+  bus.sent.clear();
+  run_for(broadcaster, clock, 300);
+  h = heartbeats(bus.sent);
+  ASSERT_FALSE(h.empty());
+  EXPECT_FALSE(h.back().wide_camera_fault);
 }
 
 // The base in the map frame from the latest complete cycle: map-odom composed with the odom pose.
@@ -814,7 +841,7 @@ TEST(PoseFrames, DbcDescribesTheCodec) {
   EXPECT_NEAR(dbc_value(q, m112.at("PositionSigma")), 0.0456, 1e-9);
   EXPECT_NEAR(dbc_value(q, m112.at("YawSigma")), 1.2, 1e-9);
   EXPECT_EQ(dbc_value(q, m112.at("InlierRatio")), 42.0);
-  const hal::CanFrame h = encode_heartbeat(Heartbeat{123456789U, PoseStatus::kDegraded, false, true, true, false, 29, 200}, 0);
+  const hal::CanFrame h = encode_heartbeat(Heartbeat{123456789U, PoseStatus::kDegraded, false, true, true, false, true, 29, 200}, 0);
   const auto& m118 = dbc.at(kHeartbeatId);
   EXPECT_EQ(dbc_value(h, m118.at("Uptime")), 123456789.0);
   EXPECT_EQ(dbc_value(h, m118.at("Status")), 2.0);
@@ -822,6 +849,7 @@ TEST(PoseFrames, DbcDescribesTheCodec) {
   EXPECT_EQ(dbc_value(h, m118.at("CameraWatchdog")), 1.0);
   EXPECT_EQ(dbc_value(h, m118.at("CanTxDropped")), 1.0);
   EXPECT_EQ(dbc_value(h, m118.at("EndOfStream")), 0.0);
+  EXPECT_EQ(dbc_value(h, m118.at("WideCameraFault")), 1.0);
   EXPECT_EQ(dbc_value(h, m118.at("FramesPerSecond")), 29.0);
   EXPECT_EQ(dbc_value(h, m118.at("RollingCounter")), 200.0);
   // Signals of one message never overlap and fit 64 bits.

@@ -1,6 +1,7 @@
 #include "commands.hpp"
 #include "exit_codes.hpp"
 #include "oni_fixture.hpp"
+#include "../hal/recording_fixture.hpp"
 
 #include "rankslam/replay/recording.hpp"
 #include "rankslam/replay/replay_camera.hpp"
@@ -51,7 +52,51 @@ TEST(RecordCommand, RecordsAnOniPlaybackIntoARecordingTheReplayDriverOpens) {
 
   // A second run into the same directory is refused: recordings are never overwritten.
   EXPECT_EQ(run_record(args), kExitOutput);
+
+  // A wide-angle device needs its calibration: refused by name before anything is recorded.
+  std::ofstream(dir / "wide.yaml") << "camera:\n  source: openni2:" << oni.string()
+                                   << "\n  calibration: calibration.yaml\n  width: 320\n  height: 240\n"
+                                      "wide_camera: {device: /dev/video99}\n";
+  args.out = dir / "wide_take";
+  args.config = dir / "wide.yaml";
+  testing::internal::CaptureStderr();
+  EXPECT_EQ(run_record(args), kExitInput);
+  const std::string said = testing::internal::GetCapturedStderr();
+  EXPECT_NE(said.find("wide_camera.device needs cameras.fisheye"), std::string::npos) << said;
+  EXPECT_FALSE(std::filesystem::exists(args.out));
   std::filesystem::remove_all(dir);
+}
+
+// A played recording's wide-angle images are recorded with its frames, each of them.
+TEST(RecordCommand, AReplaySourceRecordsItsWideAngleImages) {
+  const auto source = test::write_small_recording("rankslam_record_wide_source", 9, true, true);
+  test::add_wide_images(source, {100.0, 100.1, 100.2});
+  const auto dir = openni2::test::fresh_directory("record_wide");
+  std::ofstream(dir / "robot.yaml") << "camera:\n  source: replay:" << source.string() << "\n  replay_rate: 0\n";
+  RecordArgs args;
+  args.out = dir / "take";
+  args.config = dir / "robot.yaml";
+  ASSERT_EQ(run_record(args), kExitOk);
+  replay::Recording recording;
+  ASSERT_EQ(replay::open_recording(args.out, recording), "");
+  EXPECT_EQ(recording.frames.size(), 9U);
+  ASSERT_EQ(recording.fisheye.size(), 3U);
+  ASSERT_TRUE(recording.calibration.fisheye.has_value());
+  EXPECT_NEAR(recording.fisheye[2].stamp_s, 100.2, 1e-6);
+
+  // A live wide-angle device beside a played recording is refused before anything is recorded:
+  // their stamps have no clock in common.
+  std::ofstream(dir / "device.yaml") << "camera:\n  source: replay:" << (dir / "take").string()
+                                     << "\nwide_camera: {device: /dev/video99, width: 32, height: 24}\n";
+  args.out = dir / "take2";
+  args.config = dir / "device.yaml";
+  testing::internal::CaptureStderr();
+  EXPECT_EQ(run_record(args), kExitInput);
+  const std::string said = testing::internal::GetCapturedStderr();
+  EXPECT_NE(said.find("wide_camera.device with camera.source replay"), std::string::npos) << said;
+  EXPECT_FALSE(std::filesystem::exists(args.out));
+  std::filesystem::remove_all(dir);
+  std::filesystem::remove_all(source);
 }
 
 TEST(RecordCommand, MissingOniFileIsAnInputError) {

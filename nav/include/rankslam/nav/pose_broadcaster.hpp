@@ -84,7 +84,7 @@ class PoseBroadcaster {
   /// _base(now)); with wheel_propagation the pose cycles send the sample's pose moved by it.
   void set_wheel_motion(const Eigen::Isometry3d& T_capture_now);
   /// Camera state for the heartbeat's fault bits.
-  void set_camera_state(bool fault, bool end_of_stream);
+  void set_camera_state(bool fault, bool end_of_stream, bool wide_fault = false);
   /// Sends every frame that is due now. Returns the time until the next one is due, ns.
   [[nodiscard]] std::int64_t poll();
 
@@ -133,6 +133,7 @@ class PoseBroadcaster {
   bool dropped_since_heartbeat_ = false;
   bool camera_fault_ = false;
   bool end_of_stream_ = false;
+  bool wide_camera_fault_ = false;
   PoseOutputCounters counters_;
 };
 

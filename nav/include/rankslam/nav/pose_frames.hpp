@@ -131,7 +131,8 @@ struct PoseVelocity {
 
 /// `Heartbeat` 0x118: bytes 0..3 uptime, uint32 ms (wraps after 49.7 days); byte 4 bits 0..1
 /// status (as PoseQuality); byte 5 fault bits: 0 camera fault, 1 camera watchdog expired,
-/// 2 CAN frames dropped since the last heartbeat, 3 camera end of stream (replay only);
+/// 2 CAN frames dropped since the last heartbeat, 3 camera end of stream (replay only), 4 the
+/// wide-angle camera faulted or went silent (the SLAM goes on with the RGB-D camera alone);
 /// byte 6 camera frames processed in the last second, uint8 saturating; byte 7 rolling counter.
 struct Heartbeat {
   std::uint32_t uptime_ms = 0;
@@ -140,6 +141,7 @@ struct Heartbeat {
   bool camera_watchdog = false;
   bool can_tx_dropped = false;
   bool end_of_stream = false;
+  bool wide_camera_fault = false;
   std::uint8_t frames_per_s = 0;
   std::uint8_t counter = 0;
 };

@@ -24,6 +24,8 @@ class PoseMailbox {
   void post(const PoseSample& sample, const Eigen::Isometry3d* map_correction, std::optional<std::int64_t> wheel_stamp_ns);
   void set_camera_fault(bool fault);
   void set_end_of_stream();
+  /// The wide-angle camera faulted or went silent (true), or delivers again (false).
+  void set_wide_camera_fault(bool fault);
 
   /// The output's side: hands the newest sample to `broadcaster` when there is one it has not
   /// seen (with the corrections of every sample since), and the camera state. The sample's wheel
@@ -41,6 +43,7 @@ class PoseMailbox {
   std::uint64_t delivered_count_ = 0;
   bool camera_fault_ = false;
   bool end_of_stream_ = false;
+  bool wide_camera_fault_ = false;
 };
 
 /// How the pose output runs; fixed after construction.
