@@ -333,6 +333,38 @@ TEST_F(LiveLoopTest, AWideAngleCameraThatDiesLeavesTheLoopToTheRgbdCamera) {
   wide_camera.close();
 }
 
+// Pairing the wide-angle images with the frames allocates nothing on the loop's thread once the
+// first image is in (the replay's decoding runs on its reader thread).
+TEST_F(LiveLoopTest, PairingWideAngleImagesAllocatesNothingOnTheLoopsThread) {
+  sim::SimulationOptions simulation;
+  simulation.scene = "corridor-loop";
+  simulation.out_dir = dir_ / "recording";
+  simulation.frames = 15;
+  ASSERT_EQ(sim::simulate_recording(simulation, nullptr), "");
+  replay::Recording recording;
+  ASSERT_EQ(replay::open_recording(simulation.out_dir, recording), "");
+  replay::ReplayDepthCamera camera(recording, {});
+  replay::ReplayImageCamera images(recording, {});
+  ASSERT_EQ(camera.open(), "");
+  ASSERT_EQ(images.open(), "");
+  hal::NearestImage wide(images, 20'000'000);
+  wide.allocate(recording.calibration.fisheye->width, recording.calibration.fisheye->height, CV_8UC3);
+  hal::RgbdFrame frame;
+  ASSERT_EQ(camera.read(frame, std::chrono::milliseconds(2000)), hal::ReadStatus::kOk);
+  ASSERT_NE(wide.take(frame.stamp_ns, std::chrono::milliseconds(2000)), nullptr);
+  int paired = 0;
+  long allocations = 0;
+  {
+    const test_support::CountAllocations count;
+    while (camera.read(frame, std::chrono::milliseconds(2000)) == hal::ReadStatus::kOk) {
+      paired += wide.take(frame.stamp_ns, std::chrono::milliseconds(2000)) != nullptr ? 1 : 0;
+    }
+    allocations = count.this_thread_allocations();
+  }
+  EXPECT_EQ(paired, 4);  // frames 3, 6, 9, 12
+  EXPECT_EQ(allocations, 0);
+}
+
 // The unit's instance reaches `run` as --can-interface: it is the interface used, and one that
 // differs from the file's is said. The host has no CAN interface: the start-up error names it.
 // Checkpoints (map.checkpoint_s): the loop's thread only copies (no allocation) and goes on; the
