@@ -64,8 +64,9 @@ int run_record(const RecordArgs& args) {
   }
 
   // Set-up: camera, bus and writer; everything that may fail happens before the first frame.
-  std::unique_ptr<hal::DepthCamera> camera;
+  // Before the camera: a replay camera's reader thread reads the recording until the camera goes.
   replay::Recording source_recording;
+  std::unique_ptr<hal::DepthCamera> camera;
   openni2::OpenNI2Camera* openni2_camera = nullptr;
   replay::ReplayDepthCamera* replay_camera = nullptr;
   std::string camera_name;

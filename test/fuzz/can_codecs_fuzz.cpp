@@ -73,10 +73,10 @@ extern "C" int LLVMFuzzerTestOneInput(const std::uint8_t* data, std::size_t size
     require(same_payload(nav::encode_pose_quality(*quality, frame.stamp_ns), frame), "PoseQuality round trip");
   }
   if (const auto heartbeat = nav::decode_heartbeat(frame)) {
-    // Byte 4 bits 2..7 and byte 5 bits 4..7 are reserved: the encoder writes zeros there.
+    // Byte 4 bits 2..7 and byte 5 bits 5..7 are reserved: the encoder writes zeros there.
     CanFrame expected = frame;
     expected.data[4] &= 0x03U;
-    expected.data[5] &= 0x0FU;
+    expected.data[5] &= 0x1FU;
     require(same_payload(nav::encode_heartbeat(*heartbeat, frame.stamp_ns), expected), "Heartbeat round trip");
   }
   return 0;
