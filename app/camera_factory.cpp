@@ -36,6 +36,17 @@ v4l2::V4l2Options v4l2_options_from(const RobotConfig& config) {
   return options;
 }
 
+std::unique_ptr<replay::ReplayImageCamera> make_replay_wide_camera(const replay::Recording& recording,
+                                                                   const replay::ReplayOptions& replay_options) {
+  if (recording.fisheye.empty() || !recording.calibration.fisheye) return nullptr;
+  replay::ReplayOptions options = replay_options;
+  options.max_frames = 0;  // taken by stamp: the colour frames' end is the end
+  options.load_ir = false;
+  // Decoded while the loop works: waiting for each image would add its decoding to the replay.
+  options.decode_ahead = true;
+  return std::make_unique<replay::ReplayImageCamera>(recording, options);
+}
+
 std::string make_wide_camera(const RobotConfig& config, const hal::Calibration& calibration,
                              const replay::Recording* recording, const replay::ReplayOptions& replay_options,
                              std::unique_ptr<hal::Camera>& camera, std::string& description) {
@@ -56,14 +67,9 @@ std::string make_wide_camera(const RobotConfig& config, const hal::Calibration& 
     }
     camera = std::make_unique<v4l2::V4l2Camera>(v4l2_options_from(config));
     description = "v4l2:" + config.wide_device;
-  } else if (recording != nullptr && !recording->fisheye.empty() && recording->calibration.fisheye) {
-    replay::ReplayOptions options = replay_options;
-    options.max_frames = 0;  // taken by stamp: the colour frames' end is the end
-    options.load_ir = false;
-    // Decoded while the loop works: waiting for each image would add its decoding to the replay.
-    options.decode_ahead = true;
-    camera = std::make_unique<replay::ReplayImageCamera>(*recording, options);
-    description = "replay of " + std::to_string(recording->fisheye.size()) + " wide-angle images";
+  } else if (recording != nullptr) {
+    camera = make_replay_wide_camera(*recording, replay_options);
+    if (camera) description = "replay of " + std::to_string(recording->fisheye.size()) + " wide-angle images";
   }
   return {};
 }

@@ -22,9 +22,10 @@ bool run_live_loop(const LiveLoopParts& parts, const std::function<bool()>& stop
     totals.counts = pipeline.status_counts();
     totals.keyframes = pipeline.loop().keyframes();
     if (parts.wide != nullptr) {
+      const hal::NearestImageCounters wide = parts.wide->counters();
       totals.wide = true;
-      totals.wide_images = parts.wide->counters().read;
-      totals.wide_paired = parts.wide->counters().paired;
+      totals.wide_images = wide.read;
+      totals.wide_paired = wide.paired;
     }
     if (parts.checkpointer != nullptr) {
       const Checkpointer::Tally tally = parts.checkpointer->tally();
@@ -85,8 +86,8 @@ bool run_live_loop(const LiveLoopParts& parts, const std::function<bool()>& stop
       if (parts.wide_replay != nullptr) {
         for (const auto& warning : parts.wide_replay->take_warnings()) std::cerr << "warning: " << warning << "\n";
       }
-      if (parts.wide->counters().read != wide_images) {
-        wide_images = parts.wide->counters().read;
+      if (const std::uint64_t read = parts.wide->counters().read; read != wide_images) {
+        wide_images = read;
         wide_alive_ns = capture_ns;
       }
       // A dead or silent wide-angle camera costs its images, never the loop: the bit tells.

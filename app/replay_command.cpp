@@ -99,11 +99,7 @@ int run_replay(const ReplayArgs& args) {
 
   // The wide-angle camera's images, paired with the colour frames by nearest stamp. All of them
   // are read: the pairing stops where the colour frames end.
-  std::unique_ptr<hal::Camera> wide_camera;
-  std::string wide_description;
-  (void)make_wide_camera(RobotConfig{}, recording.calibration, &recording, options, wide_camera, wide_description);
-  // The replay camera's warnings and counters.
-  auto* wide_stream = dynamic_cast<replay::ReplayStream*>(wide_camera.get());
+  const std::unique_ptr<replay::ReplayImageCamera> wide_camera = make_replay_wide_camera(recording, options);
   std::optional<hal::NearestImage> wide;
   if (wide_camera) {
     if (auto error = wide_camera->open(); !error.empty()) {
@@ -113,7 +109,7 @@ int run_replay(const ReplayArgs& args) {
     wide.emplace(*wide_camera, std::llround(replay::kMaxAssociationGap_s * 1e9));
     wide->allocate(recording.calibration.fisheye->width, recording.calibration.fisheye->height, CV_8UC3);
     if (!args.quiet) {
-      std::cout << "wide-angle camera: " << wide_description << ", paired with frames within "
+      std::cout << "wide-angle camera: " << wide_camera->frame_count() << " images, paired with frames within "
                 << replay::kMaxAssociationGap_s << " s\n";
     }
   }
@@ -185,7 +181,7 @@ int run_replay(const ReplayArgs& args) {
     if (status != hal::ReadStatus::kOk) continue;
     if (wide) {
       (void)wide->take(frame.stamp_ns, wide_wait);
-      for (const auto& warning : wide_stream->take_warnings()) std::cerr << "\nwarning: " << warning << "\n";
+      for (const auto& warning : wide_camera->take_warnings()) std::cerr << "\nwarning: " << warning << "\n";
     }
     (void)pipeline.process(frame);
     progress.update(static_cast<unsigned>(pipeline.frames()));
@@ -202,8 +198,8 @@ int run_replay(const ReplayArgs& args) {
   std::optional<replay::ReplayCounters> wide_counters;
   if (wide_camera) {
     wide_camera->close();
-    for (const auto& warning : wide_stream->take_warnings()) std::cerr << "warning: " << warning << "\n";
-    wide_counters = wide_stream->counters();
+    for (const auto& warning : wide_camera->take_warnings()) std::cerr << "warning: " << warning << "\n";
+    wide_counters = wide_camera->counters();
   }
   if (!interrupted && counters.delivered == 0) {
     std::cerr << "error: no frame of " << recording.root.string() << " could be read (" << counters.corrupt

@@ -108,6 +108,7 @@ struct Calibration;
 namespace rankslam::replay {
 struct Recording;
 struct ReplayOptions;
+class ReplayImageCamera;
 }
 
 namespace rankslam::app {
@@ -118,6 +119,11 @@ namespace rankslam::app {
 
 /// V4L2 driver options for the robot configuration's wide_camera.
 [[nodiscard]] v4l2::V4l2Options v4l2_options_from(const RobotConfig& config);
+
+/// A recording's wide-angle images as a camera, built but not opened, paced as `replay_options`
+/// say but all of them and decoded ahead; null when it has none or no calibration for them.
+[[nodiscard]] std::unique_ptr<replay::ReplayImageCamera> make_replay_wide_camera(
+    const replay::Recording& recording, const replay::ReplayOptions& replay_options);
 
 /// The wide-angle camera a robot configuration names, built but not opened, into `camera`:
 /// wide_camera.device over V4L2 (with a live RGB-D camera: the stamps of both are CLOCK_MONOTONIC),
