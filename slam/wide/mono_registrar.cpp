@@ -43,6 +43,7 @@ MonoRegistration MonoRegistrar::register_frames(const RgbdFeatures& rgbd, const 
   // Covariance of ξ = (translation, rotation) for T ← exp(ξ)·T; the translation t of T (the RGB-D
   // camera's centre in the wide frame) moves by ρ + φ × t.
   const Eigen::Matrix<double, 6, 6> H = model_.information(estimate.model, estimate.inliers);
+  result.information = H / std::max(estimate.scale * estimate.scale, 1e-12);
   const Eigen::Matrix<double, 6, 6> covariance =
       estimate.scale * estimate.scale * H.completeOrthogonalDecomposition().pseudoInverse();
   const Eigen::Vector3d t = estimate.model.translation();

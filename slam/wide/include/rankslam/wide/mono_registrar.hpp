@@ -41,6 +41,9 @@ struct MonoRegistration {
   /// metres, from the inliers' geometry and MSSE's scale: what a few distant, clustered inliers
   /// leave loose.
   double position_sigma_m = 0.0;
+  /// Information of T_wide_rgbd over ξ = (translation, rotation) for T_wide_rgbd ← exp(ξ)·T_wide_rgbd:
+  /// the inliers' Gauss-Newton information over MSSE's scale squared.
+  Eigen::Matrix<double, 6, 6> information = Eigen::Matrix<double, 6, 6>::Zero();
 };
 
 /// RGB-D-to-wide-angle registration (ALGORITHMS.md §6.4): SIFT matches between an RGB-D frame's
