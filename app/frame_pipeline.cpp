@@ -51,11 +51,11 @@ std::int64_t FramePipeline::wheel_stamp_ns(const hal::RgbdFrame& frame) const {
   return options_.recording_clock ? nav::recording_stamp_ns(frame.stamp_s) : frame.stamp_ns;
 }
 
-slam::FrameResult FramePipeline::process(const hal::RgbdFrame& frame) {
+slam::FrameResult FramePipeline::process(const hal::RgbdFrame& frame, const hal::ImageFrame* wide) {
   const nav::MotionPrior* prior = nullptr;
   if (wheels_ != nullptr && wheels_->prior_for(wheel_stamp_ns(frame), prior_)) prior = &prior_;
   const auto start = SteadyClock::now();
-  slam::FrameResult result = loop_.process(frame, prior);
+  slam::FrameResult result = loop_.process(frame, prior, wide != nullptr ? &wide->image : nullptr);
   const double frame_ms = elapsed_ms(start);
   status_counts_.add(result);
   if (result.graph_applied) T_world_odom_ = lie::renormalised(result.map_correction * T_world_odom_);
@@ -105,6 +105,7 @@ slam::FrameResult FramePipeline::process(const hal::RgbdFrame& frame) {
     for (auto i = static_cast<int>(closures_.size()); i < loop_.loop_closures(); ++i) {
       if (const slam::LoopClosure* closure = loop_.loop_closure(i); closure != nullptr) closures_.push_back(*closure);
     }
+    collect_wide_edges();
   }
   return result;
 }
@@ -121,9 +122,19 @@ int FramePipeline::load_map(const std::filesystem::path& path) {
   }
 }
 
+void FramePipeline::collect_wide_edges() {
+  const slam::WideCounters* wide = loop_.wide_counters();
+  if (wide == nullptr) return;
+  for (auto i = wide_edges_taken_; i < wide->edges; ++i) {
+    if (const slam::LoopClosure* edge = loop_.wide_edge(i); edge != nullptr) wide_edges_.push_back(*edge);
+  }
+  wide_edges_taken_ = wide->edges;
+}
+
 void FramePipeline::finish() {
   loop_.finish();
   if (!options_.frame_log) return;
+  collect_wide_edges();
   for (std::size_t i = 0; i < trajectory_.size(); ++i) {
     const KeyframeLink& link = keyframe_links_[i];
     Eigen::Isometry3d optimized;

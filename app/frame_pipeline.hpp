@@ -79,8 +79,9 @@ class FramePipeline {
 
   /// The frame's stamp on the wheel odometry's clock.
   [[nodiscard]] std::int64_t wheel_stamp_ns(const hal::RgbdFrame& frame) const;
-  /// One camera frame through the SLAM loop with its wheel prior; the result is collected.
-  slam::FrameResult process(const hal::RgbdFrame& frame);
+  /// One camera frame through the SLAM loop with its wheel prior and the wide-angle image paired
+  /// with it (null: none); the result is collected.
+  slam::FrameResult process(const hal::RgbdFrame& frame, const hal::ImageFrame* wide = nullptr);
   /// The last optimisation; with frame_log, every pose re-expressed on its optimised key-frame.
   void finish();
 
@@ -113,6 +114,8 @@ class FramePipeline {
   [[nodiscard]] const std::vector<double>& frame_ms() const { return frame_ms_; }
   [[nodiscard]] const std::array<std::vector<double>, slam::StageTimes::kCount>& stage_ms() const { return stage_ms_; }
   [[nodiscard]] const std::vector<slam::LoopClosure>& closures() const { return closures_; }
+  /// The RGBD–mono edges of the wide-angle camera, as closures between their key-frames.
+  [[nodiscard]] const std::vector<slam::LoopClosure>& wide_edges() const { return wide_edges_; }
 
  private:
   struct KeyframeLink {
@@ -120,6 +123,9 @@ class FramePipeline {
     std::uint32_t generation = 0;
     Eigen::Isometry3d T_keyframe_cam = Eigen::Isometry3d::Identity();
   };
+
+  /// With frame_log: the RGBD–mono edges the loop logged since the last call.
+  void collect_wide_edges();
 
   PipelineOptions options_;
   Eigen::Isometry3d T_base_cam_;
@@ -141,6 +147,8 @@ class FramePipeline {
   std::array<std::vector<double>, slam::StageTimes::kCount> stage_ms_;
   std::vector<KeyframeLink> keyframe_links_;
   std::vector<slam::LoopClosure> closures_;
+  std::vector<slam::LoopClosure> wide_edges_;
+  std::uint64_t wide_edges_taken_ = 0;
 };
 
 }  // namespace rankslam::app

@@ -81,8 +81,9 @@ bool run_live_loop(const LiveLoopParts& parts, const std::function<bool()>& stop
       continue;
     }
     const std::int64_t capture_ns = clock.now_ns();
+    const hal::ImageFrame* paired = nullptr;
     if (parts.wide != nullptr && parts.wide_camera_open) {
-      (void)parts.wide->take(frame.stamp_ns, parts.wide_wait);
+      paired = parts.wide->take(frame.stamp_ns, parts.wide_wait);
       if (parts.wide_replay != nullptr) {
         for (const auto& warning : parts.wide_replay->take_warnings()) std::cerr << "warning: " << warning << "\n";
       }
@@ -100,7 +101,7 @@ bool run_live_loop(const LiveLoopParts& parts, const std::function<bool()>& stop
                             : "the wide-angle camera sends images again\n");
       }
     }
-    const slam::FrameResult result = pipeline.process(frame);
+    const slam::FrameResult result = pipeline.process(frame, paired);
     const bool registered =
         result.status == slam::FrameStatus::kTracking || result.status == slam::FrameStatus::kFirstFrame;
     nav::PoseSample sample;

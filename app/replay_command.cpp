@@ -179,11 +179,12 @@ int run_replay(const ReplayArgs& args) {
     for (const auto& warning : camera.take_warnings()) std::cerr << "\nwarning: " << warning << "\n";
     if (status == hal::ReadStatus::kEndOfStream) break;
     if (status != hal::ReadStatus::kOk) continue;
+    const hal::ImageFrame* paired = nullptr;
     if (wide) {
-      (void)wide->take(frame.stamp_ns, wide_wait);
+      paired = wide->take(frame.stamp_ns, wide_wait);
       for (const auto& warning : wide_camera->take_warnings()) std::cerr << "\nwarning: " << warning << "\n";
     }
-    (void)pipeline.process(frame);
+    (void)pipeline.process(frame, paired);
     progress.update(static_cast<unsigned>(pipeline.frames()));
   }
   progress.finish();
@@ -256,6 +257,30 @@ int run_replay(const ReplayArgs& args) {
     }
   }
   report_error(outputs.add("loop_closures.csv", std::string_view(eval::loop_closures_csv(closures, closure_errors))));
+  // The wide-angle camera's RGBD–mono edges against the ground truth, as the closures are.
+  int checked_wide_edges = 0;
+  int false_wide_edges = 0;
+  double worst_wide_edge_m = 0.0;
+  std::vector<eval::RelativePoseError> wide_edge_errors;
+  if (ground_truth && !pipeline.wide_edges().empty()) {
+    std::vector<eval::StampedRelativePose> measured;
+    measured.reserve(pipeline.wide_edges().size());
+    for (const slam::LoopClosure& e : pipeline.wide_edges()) measured.push_back({e.stored_stamp_s, e.current_stamp_s, e.T_stored_current});
+    if (auto errors = eval::compute_relative_pose_errors(*ground_truth, measured)) {
+      wide_edge_errors = std::move(errors).value();
+    } else {
+      std::cerr << "warning: " << errors.error() << "; wide-angle edges not checked against the ground truth\n";
+    }
+  }
+  for (const eval::RelativePoseError& error : wide_edge_errors) {
+    if (!error.has_ground_truth) continue;
+    ++checked_wide_edges;
+    false_wide_edges += eval::is_false_closure(error) ? 1 : 0;
+    worst_wide_edge_m = std::max(worst_wide_edge_m, error.translation_m);
+  }
+  if (loop.wide_counters() != nullptr) {
+    report_error(outputs.add("wide_edges.csv", std::string_view(eval::loop_closures_csv(pipeline.wide_edges(), wide_edge_errors))));
+  }
   int checked_closures = 0;
   int false_closures = 0;
   double worst_closure_m = 0.0;
@@ -292,6 +317,19 @@ int run_replay(const ReplayArgs& args) {
     json.integer("images", static_cast<long long>(wide->counters().read));
     json.integer("paired", static_cast<long long>(wide->counters().paired));
     json.integer("skipped", wide_counters->corrupt);
+    if (const slam::WideCounters* used = loop.wide_counters(); used != nullptr) {
+      json.integer("used", static_cast<long long>(used->images));
+      json.integer("dropped", static_cast<long long>(used->dropped));
+      json.integer("mono_nodes", static_cast<long long>(used->mono_nodes));
+      json.integer("rgbd_mono_edges", static_cast<long long>(used->edges));
+      json.integer("loop_edges", static_cast<long long>(used->loop_edges));
+      json.integer("refused_edges", static_cast<long long>(used->refused));
+      if (checked_wide_edges > 0) {
+        json.integer("edges_checked", checked_wide_edges);
+        json.integer("false_edges", false_wide_edges);
+        json.number("worst_edge_m", worst_wide_edge_m);
+      }
+    }
     json.end_object();
   } else {
     json.null("wide_angle");
@@ -385,9 +423,19 @@ int run_replay(const ReplayArgs& args) {
     std::printf("  (no wheels: %s)\n", wheels_off_reason.c_str());
   }
   if (wide) {
-    std::printf("wide-angle images %llu  paired with frames %llu  skipped %u (not used by the SLAM loop yet)\n",
+    std::printf("wide-angle images %llu  paired with frames %llu  skipped %u",
                 static_cast<unsigned long long>(wide->counters().read),
                 static_cast<unsigned long long>(wide->counters().paired), wide_counters->corrupt);
+    if (const slam::WideCounters* used = loop.wide_counters(); used != nullptr) {
+      std::printf("  used %llu  mono nodes %llu  RGBD-mono edges %llu (%llu to older key-frames, %llu refused)",
+                  static_cast<unsigned long long>(used->images), static_cast<unsigned long long>(used->mono_nodes),
+                  static_cast<unsigned long long>(used->edges), static_cast<unsigned long long>(used->loop_edges),
+                  static_cast<unsigned long long>(used->refused));
+      if (checked_wide_edges > 0) std::printf("  against the ground truth: %d false, worst %.3f m", false_wide_edges, worst_wide_edge_m);
+    } else {
+      std::printf("  (not used: slam.wide_*_candidates are 0)");
+    }
+    std::printf("\n");
   }
   std::printf("loop closures %d (%d refuted by their neighbours)", loop.loop_closures(), loop.loop_closures_refuted());
   if (checked_closures > 0) {

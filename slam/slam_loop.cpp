@@ -36,6 +36,9 @@ SlamLoop::SlamLoop(const SlamConfig& config, const hal::Calibration& calibration
     throw std::invalid_argument("slam.threads: " + error);
   }
   registrar_.share_with(&team_);
+  if (calibration.fisheye && config_.wide.enabled()) {
+    wide_ = std::make_unique<WideCloser>(config_, calibration, keyframe_store_, loop_closer_, backend_);
+  }
   tracker_ = make_tracker({config_, camera_, images_, registrar_, geometric_, arbiter_, team_, companion_, backend_});
   if (keyframe_layout(config_).geometric_features > 0 && config_.loop.candidates_per_frame > 0 &&
       config_.loop.candidates_per_frame < config_.loop.max_candidates) {
@@ -46,11 +49,15 @@ SlamLoop::SlamLoop(const SlamConfig& config, const hal::Calibration& calibration
 FrameResult SlamLoop::process(const hal::RgbdFrame& frame) { return process(frame, nullptr); }
 
 FrameResult SlamLoop::process(const hal::RgbdFrame& frame, const nav::MotionPrior* prior) {
+  return process(frame, prior, nullptr);
+}
+
+FrameResult SlamLoop::process(const hal::RgbdFrame& frame, const nav::MotionPrior* prior, const cv::Mat* wide) {
   FrameResult result;
   result.wheels.prior_given = prior != nullptr;
   tracker_->track(frame, prior, result);
   relocalise(result);
-  finish_frame(frame, prior, result);
+  finish_frame(frame, prior, wide, result);
   tracker_->end_frame(result);
   return result;
 }
@@ -228,7 +235,8 @@ bool SlamLoop::tracking_registers(const FrameResult& result, int min_inliers, in
   return false;
 }
 
-void SlamLoop::finish_frame(const hal::RgbdFrame& frame, const nav::MotionPrior* prior, FrameResult& result) {
+void SlamLoop::finish_frame(const hal::RgbdFrame& frame, const nav::MotionPrior* prior, const cv::Mat* wide,
+                            FrameResult& result) {
   // The first frame starts the wheel motion the first key-frame's edges will span.
   backend_.accumulate_wheel_motion(result.status == FrameStatus::kFirstFrame ? nullptr : prior);
   if (!result.wheels.compared) {
@@ -252,6 +260,10 @@ void SlamLoop::finish_frame(const hal::RgbdFrame& frame, const nav::MotionPrior*
     result.keyframe_node = keyframe.node;
     result.keyframe_generation = keyframe.generation;
     result.T_keyframe_cam = keyframe.T_world_cam.inverse() * result.T_world_cam;
+  }
+  if (wide_) {
+    const bool tracked = result.status == FrameStatus::kTracking || result.status == FrameStatus::kFirstFrame;
+    (void)wide_->update(frame.rgb, frame.depth, wide, tracked && in_map_, result.T_world_cam);
   }
   run_backend(result);
   result.times.ms[StageTimes::kMapping] = elapsed_ms(stage_start);
@@ -305,6 +317,7 @@ void SlamLoop::store_keyframe(const hal::RgbdFrame& frame, bool have_depth, Fram
   keyframe.path_m = path_m_;
   if (have_depth) map_.add_keyframe(frame, images_, result.T_world_cam, &keyframe);
   latest_keyframe_slot_ = slot;
+  if (wide_) wide_->keyframe_stored(slot);
   // A search still under way for the previous key-frame ends before this one's starts.
   loop_closer_.advance(0, result);
   if (result.status == FrameStatus::kTracking && keyframe.node >= 0) loop_closer_.start(slot, features.geometric);
@@ -330,9 +343,10 @@ void SlamLoop::finish() {
     FrameResult ignored;
     loop_closer_.advance(0, ignored);
   }
+  if (wide_) (void)wide_->finish();
   backend_.finish(keyframe_store_, [this](const Eigen::Isometry3d& correction) { correct_tracking(correction); });
   // The live map already sits on the only poses there are unless they moved or some were retired.
-  if (loop_closer_.closures() == 0 && !rebuild_map_) return;
+  if (loop_closer_.closures() == 0 && (!wide_ || wide_->counters().edges == 0) && !rebuild_map_) return;
   map_.rebuild(keyframe_store_);
 }
 

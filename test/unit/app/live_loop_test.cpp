@@ -158,9 +158,12 @@ class LiveLoopTest : public ::testing::Test {
     fs::remove_all(dir_, ignored);
   }
   /// The simulated office's first `frames` frames as a recording in dir_/recording.
-  void simulate_office(int frames, replay::Recording& recording) {
+  void simulate_office(int frames, replay::Recording& recording) { simulate("office", frames, recording); }
+  /// The same of the simulated corridor loop, with its wide-angle images (one per third frame).
+  void simulate_corridor(int frames, replay::Recording& recording) { simulate("corridor-loop", frames, recording); }
+  void simulate(const char* scene, int frames, replay::Recording& recording) {
     sim::SimulationOptions simulation;
-    simulation.scene = "office";
+    simulation.scene = scene;
     simulation.out_dir = dir_ / "recording";
     simulation.frames = frames;
     ASSERT_EQ(sim::simulate_recording(simulation, nullptr), "");
@@ -291,13 +294,9 @@ class DyingImageCamera final : public hal::Camera {
 // A wide-angle camera that dies costs its images, never the loop: every frame is processed, the
 // images before the death were paired with their frames, and the journal says RGB-D only.
 TEST_F(LiveLoopTest, AWideAngleCameraThatDiesLeavesTheLoopToTheRgbdCamera) {
-  sim::SimulationOptions simulation;
-  simulation.scene = "corridor-loop";
-  simulation.out_dir = dir_ / "recording";
-  simulation.frames = 9;  // wide-angle images at frames 0, 3, 6
-  ASSERT_EQ(sim::simulate_recording(simulation, nullptr), "");
+  // wide-angle images at frames 0, 3, 6
   replay::Recording recording;
-  ASSERT_EQ(replay::open_recording(simulation.out_dir, recording), "");
+  simulate_corridor(9, recording);
   ASSERT_EQ(recording.fisheye.size(), 3U);
   replay::ReplayDepthCamera camera(recording, {});
   ASSERT_EQ(camera.open(), "");
@@ -336,13 +335,8 @@ TEST_F(LiveLoopTest, AWideAngleCameraThatDiesLeavesTheLoopToTheRgbdCamera) {
 // Pairing the wide-angle images with the frames allocates nothing on the loop's thread once the
 // first image is in (the replay's decoding runs on its reader thread).
 TEST_F(LiveLoopTest, PairingWideAngleImagesAllocatesNothingOnTheLoopsThread) {
-  sim::SimulationOptions simulation;
-  simulation.scene = "corridor-loop";
-  simulation.out_dir = dir_ / "recording";
-  simulation.frames = 9;
-  ASSERT_EQ(sim::simulate_recording(simulation, nullptr), "");
   replay::Recording recording;
-  ASSERT_EQ(replay::open_recording(simulation.out_dir, recording), "");
+  simulate_corridor(9, recording);
   replay::ReplayDepthCamera camera(recording, {});
   replay::ReplayImageCamera images(recording, {});
   ASSERT_EQ(camera.open(), "");
@@ -362,6 +356,45 @@ TEST_F(LiveLoopTest, PairingWideAngleImagesAllocatesNothingOnTheLoopsThread) {
     allocations = count.this_thread_allocations();
   }
   EXPECT_EQ(paired, 2);  // frames 3 and 6
+  EXPECT_EQ(allocations, 0);
+}
+
+// The wide-angle camera's part of the SLAM loop allocates nothing on the loop's thread: each
+// key-frame's image is copied into the mapper's queue, its registrations taken from it, from the
+// second frame on (the mapper's SIFT runs on its own thread).
+TEST_F(LiveLoopTest, WideAngleKeyFramesAllocateNothingOnTheLoopsThread) {
+  replay::Recording recording;
+  simulate_corridor(120, recording);
+  replay::ReplayDepthCamera camera(recording, {});
+  replay::ReplayImageCamera images(recording, {});
+  ASSERT_EQ(camera.open(), "");
+  ASSERT_EQ(images.open(), "");
+  hal::NearestImage wide(images, 20'000'000);
+  wide.allocate(recording.calibration.fisheye->width, recording.calibration.fisheye->height, CV_8UC3);
+  PipelineOptions pipeline_options;
+  pipeline_options.max_frames = 100;
+  slam::SlamConfig config;
+  config.wide.recent_candidates = 2;
+  config.wide.loop_candidates = 2;
+  FramePipeline pipeline(config, camera.calibration(), nullptr, pipeline_options);
+  ASSERT_NE(pipeline.loop().wide_counters(), nullptr);
+  hal::RgbdFrame frame;
+  ASSERT_EQ(camera.read(frame, std::chrono::milliseconds(2000)), hal::ReadStatus::kOk);
+  (void)pipeline.process(frame, wide.take(frame.stamp_ns, std::chrono::milliseconds(2000)));
+  long allocations = 0;
+  {
+    const test_support::CountAllocations count;
+    while (camera.read(frame, std::chrono::milliseconds(2000)) == hal::ReadStatus::kOk) {
+      (void)pipeline.process(frame, wide.take(frame.stamp_ns, std::chrono::milliseconds(2000)));
+    }
+    allocations = count.this_thread_allocations();
+  }
+  pipeline.finish();
+  EXPECT_EQ(pipeline.frames(), 120U);
+  const slam::WideCounters* used = pipeline.loop().wide_counters();
+  ASSERT_NE(used, nullptr);
+  const std::uint64_t used_images = used->images;
+  EXPECT_GE(used_images, 2U) << "a key-frame after the first gave the mapper its image";
   EXPECT_EQ(allocations, 0);
 }
 

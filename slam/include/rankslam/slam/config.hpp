@@ -179,6 +179,44 @@ struct LoopConfig {
   }
 };
 
+/// The wide-angle camera's part (docs/methods.md §14): at each key-frame, the first paired image
+/// of a frame tracked from it is registered to stored key-frames; edges that fit the chain as a
+/// loop closure must (loop_max_correction_* and loop_drift_*) join the pose graph. Keys `slam.wide_*`.
+struct WideConfig {
+  // Candidates per image: the nearest stored key-frames among the recent ones (older than the
+  // previous key-frame, newer than loop_min_keyframe_gap) and among the older ones; both 0: the
+  // wide-angle camera's images are not used. Off by default: on the corridor loop the edges
+  // helped no seed beyond a few per cent and cost accuracy with wheels (docs/results.md §10.4);
+  // 2 and 2 is what was measured.
+  int recent_candidates = 0;
+  int loop_candidates = 0;
+  // Candidates lie this close to the image's camera (plus the drift allowance) and look at most
+  // this far from its direction.
+  double search_radius_m = 3.0;
+  double search_rotation_deg = 90.0;
+  // A registration must have this many inliers and fix its translation this well (metres, along
+  // its least certain direction; docs/results.md §10.2).
+  int min_inliers = 12;
+  double max_position_sigma_m = 0.03;
+
+  [[nodiscard]] bool enabled() const { return recent_candidates + loop_candidates > 0; }
+
+  template <typename Visitor>
+  void visit_parameters(Visitor&& visit) {
+    visit("wide_recent_candidates", recent_candidates, 0, 4, "",
+          "recent stored key-frames (not the previous one, newer than loop_min_keyframe_gap) each wide-angle image is registered to");
+    visit("wide_loop_candidates", loop_candidates, 0, 4, "",
+          "older stored key-frames each wide-angle image is registered to (both 0: the wide-angle camera is not used)");
+    visit("wide_search_radius_m", search_radius_m, 0.0, 100.0, "m",
+          "wide-angle candidates lie this close to the image's camera, plus the drift allowance");
+    visit("wide_search_rotation_deg", search_rotation_deg, 0.0, 180.0, "deg",
+          "wide-angle candidates look at most this far from the wide-angle camera's direction");
+    visit("wide_min_inliers", min_inliers, 6, 10000, "", "fewest inliers of an RGB-D-to-wide-angle registration");
+    visit("wide_max_position_sigma_m", max_position_sigma_m, 0.0, 10.0, "m",
+          "largest standard deviation of an RGB-D-to-wide-angle registration's translation");
+  }
+};
+
 /// Relocalisation (docs/methods.md §13): finding the camera in the stored key-frames after
 /// tracking was lost or in a loaded map. Keys `slam.relocalise_*`.
 struct RelocalisationConfig {
@@ -312,6 +350,7 @@ struct SlamConfig {
   FusedConfig fused;
   MapConfig map;
   LoopConfig loop;
+  WideConfig wide;
   RelocalisationConfig relocalisation;
   GraphConfig graph;
   int seed = 1;
@@ -384,6 +423,7 @@ struct SlamConfig {
     fused.visit_parameters(visit);
     map.visit_parameters(visit);
     loop.visit_parameters(visit);
+    wide.visit_parameters(visit);
     relocalisation.visit_parameters(visit);
     graph.visit_parameters(visit);
     visit("seed", seed, 0, 2147483647, "", "random seed: equal seeds give equal results");

@@ -18,6 +18,7 @@
 #include "rankslam/slam/point_map.hpp"
 #include "rankslam/slam/registrar.hpp"
 #include "rankslam/slam/tracker.hpp"
+#include "rankslam/slam/wide_closer.hpp"
 
 #include <Eigen/Geometry>
 
@@ -47,6 +48,15 @@ class SlamLoop {
   [[nodiscard]] FrameResult process(const hal::RgbdFrame& frame);
   /// As process(frame), with the wheel motion since the previous frame; null: no prior.
   [[nodiscard]] FrameResult process(const hal::RgbdFrame& frame, const nav::MotionPrior* prior);
+  /// As process(frame, prior), with the wide-angle camera's image paired with the frame (null:
+  /// none); used where the calibration holds the wide-angle camera (docs/methods.md §14).
+  [[nodiscard]] FrameResult process(const hal::RgbdFrame& frame, const nav::MotionPrior* prior, const cv::Mat* wide);
+
+  /// What the wide-angle camera added to the map; null where it takes no part (no `fisheye` in
+  /// the calibration, or slam.wide_*_candidates both 0).
+  [[nodiscard]] const WideCounters* wide_counters() const { return wide_ ? &wide_->counters() : nullptr; }
+  /// The index-th RGBD–mono edge (see WideCloser::edge); null without the wide-angle camera.
+  [[nodiscard]] const LoopClosure* wide_edge(std::uint64_t index) const { return wide_ ? wide_->edge(index) : nullptr; }
 
   /// Wheel-slip events so far: disagreements with the wheels that vision won (see the class
   /// comment).
@@ -73,7 +83,10 @@ class SlamLoop {
 
   /// Offline replay: optimise the pose graph on the calling thread's schedule (wait for each
   /// solve), so that results do not depend on thread timing. Live runs leave it off.
-  void set_synchronous_backend(bool synchronous) { backend_.set_synchronous(synchronous); }
+  void set_synchronous_backend(bool synchronous) {
+    backend_.set_synchronous(synchronous);
+    if (wide_) wide_->set_synchronous(synchronous);
+  }
   /// End of a run: optimises the graph once more if a closure is pending (waits for it) and
   /// rebuilds the map from the stored key-frames at their optimised poses.
   void finish();
@@ -106,7 +119,8 @@ class SlamLoop {
  private:
   /// The key-frame part of a frame: a frame far enough from the latest key-frame becomes one;
   /// then the loop search, the back-end and the frame's link to its key-frame.
-  void finish_frame(const hal::RgbdFrame& frame, const nav::MotionPrior* prior, FrameResult& result);
+  void finish_frame(const hal::RgbdFrame& frame, const nav::MotionPrior* prior, const cv::Mat* wide,
+                    FrameResult& result);
   /// Stores the frame as a key-frame: graph node, sequential edge from the previous key-frame,
   /// map points, then the loop-closure search.
   void store_keyframe(const hal::RgbdFrame& frame, bool have_depth, FrameResult& result);
@@ -147,6 +161,8 @@ class SlamLoop {
   LoopCloser loop_closer_;
   Relocaliser relocaliser_;
   std::unique_ptr<Tracker> tracker_;
+  /// The wide-angle camera's part; null without one. Goes before the store and back-end it uses.
+  std::unique_ptr<WideCloser> wide_;
   /// Consecutive frames whose registration failed without wheels.
   int failed_in_a_row_ = 0;
   /// The previous frame's photometric matches (0 unless it was tracked).
