@@ -17,11 +17,13 @@ struct Scene {
   Eigen::Isometry3d T_wide_rgbd = Eigen::Isometry3d::Identity();
 };
 
-/// `points` RGB-D features, each matching one wide-angle feature; every third wide-angle
-/// feature's ray points elsewhere (a wrong match).
+/// `points` RGB-D features, each matching one wide-angle feature along a ray with 1 mrad of noise
+/// (noiseless rays leave MSSE's scale at rounding level, where the inlier count is the compiler's
+/// choice); every third wide-angle feature's ray points elsewhere (a wrong match).
 Scene make_scene(int points, std::uint32_t seed) {
   std::mt19937 rng(seed);
   std::uniform_real_distribution<double> unit(-1.0, 1.0);
+  std::normal_distribution<double> noise(0.0, 1e-3);
   std::uniform_real_distribution<float> value(0.0F, 100.0F);
   Scene scene;
   scene.T_wide_rgbd.linear() = Eigen::AngleAxisd(1.5, Eigen::Vector3d(0.1, 1.0, 0.2).normalized()).toRotationMatrix();
@@ -35,7 +37,9 @@ Scene make_scene(int points, std::uint32_t seed) {
     const Eigen::Vector3d p(1.5 * unit(rng), unit(rng), 2.5 + unit(rng));
     scene.rgbd.points.col(i) = p;
     const Eigen::Vector3d elsewhere(unit(rng), unit(rng), unit(rng));
-    scene.wide.rays.col(i) = i % 3 == 2 ? elsewhere.normalized() : (scene.T_wide_rgbd * p).normalized();
+    const Eigen::Vector3d seen =
+        (scene.T_wide_rgbd * p).normalized() + Eigen::Vector3d(noise(rng), noise(rng), noise(rng));
+    scene.wide.rays.col(i) = i % 3 == 2 ? elsewhere.normalized() : seen.normalized();
     for (int d = 0; d < 128; ++d) scene.rgbd.descriptors.at<float>(i, d) = value(rng);
     scene.rgbd.descriptors.row(i).copyTo(scene.wide.descriptors.row(i));
   }
@@ -51,9 +55,12 @@ TEST(MonoRegistrar, FindsThePoseThroughWrongMatchesAndRaysBeyondNinetyDegrees) {
   const MonoRegistration r = registrar.register_frames(scene.rgbd, scene.wide);
   ASSERT_TRUE(r.ok);
   EXPECT_EQ(r.matches, 90);
-  EXPECT_EQ(r.inliers, 60);
-  EXPECT_LT((r.T_wide_rgbd.translation() - scene.T_wide_rgbd.translation()).norm(), 1e-6);
-  EXPECT_LT(Eigen::AngleAxisd(r.T_wide_rgbd.linear().transpose() * scene.T_wide_rgbd.linear()).angle(), 1e-6);
+  // The 30 wrong matches are off by radians: none is an inlier, and few right ones fall beyond
+  // MSSE's 2.5 σ.
+  EXPECT_LE(r.inliers, 60);
+  EXPECT_GE(r.inliers, 55);
+  EXPECT_LT((r.T_wide_rgbd.translation() - scene.T_wide_rgbd.translation()).norm(), 0.01);
+  EXPECT_LT(Eigen::AngleAxisd(r.T_wide_rgbd.linear().transpose() * scene.T_wide_rgbd.linear()).angle(), 2e-3);
 }
 
 TEST(MonoRegistrar, EachRegistrationStandsAlone) {
@@ -99,7 +106,7 @@ TEST(MonoRegistrar, APoseItsInliersLeaveLooseIsRefused) {
   const Scene spread = make_scene(40, 6);
   const MonoRegistration fixed = registrar.register_frames(spread.rgbd, spread.wide);
   EXPECT_TRUE(fixed.ok);
-  EXPECT_LT(fixed.position_sigma_m, 1e-3);
+  EXPECT_LT(fixed.position_sigma_m, 0.01) << "against the loose pose's " << r.position_sigma_m;
 }
 
 TEST(MonoRegistrar, TooFewFeaturesRegisterNothing) {
