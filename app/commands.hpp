@@ -8,6 +8,7 @@
 #include <optional>
 #include <filesystem>
 #include <string>
+#include <vector>
 
 namespace rankslam::app {
 
@@ -28,6 +29,8 @@ struct ReplayArgs {
   std::filesystem::path save_map;
   /// --load-map: a map file to start in (empty: a new map).
   std::filesystem::path load_map;
+  /// --vocabulary: place-recognition words from `rankslam vocabulary` (empty: the built-in ones).
+  std::filesystem::path vocabulary;
 };
 
 struct SimulateArgs {
@@ -56,6 +59,7 @@ struct RunArgs {
   std::filesystem::path load_map;
   /// --save-map: where checkpoints and the exit write the map (empty: map.file, or nowhere).
   std::filesystem::path save_map;
+  std::filesystem::path vocabulary;  ///< as ReplayArgs::vocabulary
 };
 
 struct RecordArgs {
@@ -65,7 +69,17 @@ struct RecordArgs {
   double seconds = 0.0;          ///< Stop after this long (0 = no limit).
 };
 
+struct VocabularyArgs {
+  std::vector<std::filesystem::path> recordings;
+  std::filesystem::path out;
+  int words = 64;
+  int every = 5;                  ///< every n-th colour frame and wide-angle image
+  int max_descriptors = 100000;   ///< k-means over at most this many, evenly spaced
+  std::uint64_t seed = 1;
+};
+
 [[nodiscard]] int run_record(const RecordArgs& args);
+[[nodiscard]] int run_vocabulary(const VocabularyArgs& args);
 [[nodiscard]] int run_replay(const ReplayArgs& args);
 [[nodiscard]] int run_simulate(const SimulateArgs& args);
 [[nodiscard]] int run_eval(const EvalArgs& args);

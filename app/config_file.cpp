@@ -151,6 +151,17 @@ int load_pipeline_config(const std::filesystem::path& path, const std::string& m
   return kExitOk;
 }
 
+int load_vocabulary(const std::filesystem::path& path, std::optional<wide::Vocabulary>& vocabulary) {
+  if (path.empty()) return kExitOk;
+  try {
+    vocabulary.emplace(wide::Vocabulary::load(path.string()));
+  } catch (const std::exception& e) {
+    std::cerr << "error: " << e.what() << "\n";
+    return kExitInput;
+  }
+  return kExitOk;
+}
+
 int make_output_directory(const std::filesystem::path& dir) {
   if (auto error = hal::prepare_output_directory(dir); !error.empty()) {
     std::cerr << "error: " << error << "\n";

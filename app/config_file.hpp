@@ -2,10 +2,12 @@
 
 #include "rankslam/nav/wheel_odometry.hpp"
 #include "rankslam/slam/config.hpp"
+#include "rankslam/wide/vlad.hpp"
 
 #include <yaml-cpp/yaml.h>
 
 #include <filesystem>
+#include <optional>
 #include <set>
 #include <string>
 
@@ -47,5 +49,9 @@ namespace rankslam::app {
 /// Creates the output directory `dir`, removes what killed runs left there and test-writes a file,
 /// so an unwritable `dir` stops the run before it starts; kExitOk, or kExitOutput after printing why not.
 [[nodiscard]] int make_output_directory(const std::filesystem::path& dir);
+
+/// Reads the vocabulary file `path` into `vocabulary` (nothing when `path` is empty); an error
+/// naming the file is printed and kExitInput returned when it cannot be read.
+[[nodiscard]] int load_vocabulary(const std::filesystem::path& path, std::optional<wide::Vocabulary>& vocabulary);
 
 }  // namespace rankslam::app

@@ -35,7 +35,7 @@ bool ReceivedWheels::prior_for(std::int64_t stamp_ns, nav::MotionPrior& prior) {
 
 FramePipeline::FramePipeline(const slam::SlamConfig& config, const hal::Calibration& calibration, WheelSource* wheels,
                              const PipelineOptions& options)
-    : options_(options), T_base_cam_(calibration.rgb.T_base_cam), loop_(config, calibration), wheels_(wheels) {
+    : options_(options), T_base_cam_(calibration.rgb.T_base_cam), loop_(config, calibration, options.vocabulary), wheels_(wheels) {
   loop_.set_synchronous_backend(options.synchronous_backend);
   trajectory_.reserve(options.max_frames);
   relocalisations_.reserve(kMaxRelocalisations);

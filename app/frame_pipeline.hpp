@@ -68,6 +68,8 @@ struct PipelineOptions {
   /// Keep frames.csv records, timings, key-frame links and loop closures, and re-express the
   /// trajectory on the optimised key-frames at finish(); false: the trajectory is the poses as sent.
   bool frame_log = false;
+  /// The wide-angle camera's place-recognition words (null: the built-in ones); must outlive set-up.
+  const wide::Vocabulary* vocabulary = nullptr;
 };
 
 /// The per-frame path `replay` and `run` share: camera frame + wheel prior → SLAM loop → the

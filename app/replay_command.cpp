@@ -153,7 +153,10 @@ int run_replay(const ReplayArgs& args) {
   std::optional<ReplayedWheels> replayed_wheels;
   if (wheels) replayed_wheels.emplace(can_bus, *wheels);
 
+  std::optional<wide::Vocabulary> vocabulary;
+  if (const int code = load_vocabulary(args.vocabulary, vocabulary); code != kExitOk) return code;
   PipelineOptions pipeline_options;
+  pipeline_options.vocabulary = vocabulary ? &*vocabulary : nullptr;
   pipeline_options.max_frames = camera.frame_count();
   pipeline_options.recording_clock = true;
   // Offline: each pose-graph solve is waited for, so a replay gives the same result every time.

@@ -219,7 +219,10 @@ int run_live(const RunArgs& args) {
             << (wheels.enabled() ? describe_wheel_config(wheel_config) : std::string()) << std::flush;
   std::optional<WheelPlayer> player;
   ReceivedWheels received_wheels(wheels, player);
+  std::optional<wide::Vocabulary> vocabulary;
+  if (const int code = load_vocabulary(args.vocabulary, vocabulary); code != kExitOk) return code;
   PipelineOptions pipeline_options;
+  pipeline_options.vocabulary = vocabulary ? &*vocabulary : nullptr;
   pipeline_options.max_frames = robot.max_trajectory_poses;
   pipeline_options.recording_clock = replay_camera != nullptr;
   FramePipeline pipeline(slam_config, calibration, wheels.enabled() ? &received_wheels : nullptr, pipeline_options);

@@ -18,7 +18,7 @@ KeyframeStore make_keyframe_store(const SlamConfig& config) {
 
 }  // namespace
 
-SlamLoop::SlamLoop(const SlamConfig& config, const hal::Calibration& calibration)
+SlamLoop::SlamLoop(const SlamConfig& config, const hal::Calibration& calibration, const wide::Vocabulary* vocabulary)
     : config_(config),
       camera_(calibration),
       images_(camera_.width(), camera_.height(), config_.ir_switch_brightness),
@@ -37,7 +37,7 @@ SlamLoop::SlamLoop(const SlamConfig& config, const hal::Calibration& calibration
   }
   registrar_.share_with(&team_);
   if (calibration.fisheye && config_.wide.enabled()) {
-    wide_ = std::make_unique<WideCloser>(config_, calibration, keyframe_store_, loop_closer_, backend_);
+    wide_ = std::make_unique<WideCloser>(config_, calibration, keyframe_store_, loop_closer_, backend_, vocabulary);
   }
   tracker_ = make_tracker({config_, camera_, images_, registrar_, geometric_, arbiter_, team_, companion_, backend_});
   if (keyframe_layout(config_).geometric_features > 0 && config_.loop.candidates_per_frame > 0 &&

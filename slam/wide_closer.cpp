@@ -11,8 +11,9 @@ namespace {
 /// χ² of 6 degrees of freedom at 99 %.
 constexpr double kChiSquare6Dof99 = 16.81;
 
-wide::WideMapperOptions mapper_options(const SlamConfig& config) {
+wide::WideMapperOptions mapper_options(const SlamConfig& config, const wide::Vocabulary* vocabulary) {
   wide::WideMapperOptions options;
+  options.vocabulary = vocabulary;
   options.capacity = config.keyframe_capacity;
   options.registration.min_inliers = config.wide.min_inliers;
   options.registration.max_position_sigma_m = config.wide.max_position_sigma_m;
@@ -23,14 +24,15 @@ wide::WideMapperOptions mapper_options(const SlamConfig& config) {
 }  // namespace
 
 WideCloser::WideCloser(const SlamConfig& config, const hal::Calibration& calibration, KeyframeStore& store,
-                       const LoopCloser& loop_closer, Backend& backend)
+                       const LoopCloser& loop_closer, Backend& backend, const wide::Vocabulary* vocabulary)
     : config_(config),
       store_(store),
       loop_closer_(loop_closer),
       backend_(backend),
-      mapper_(calibration, mapper_options(config)) {
+      mapper_(calibration, mapper_options(config, vocabulary)) {
   candidates_.reserve(static_cast<std::size_t>(store.capacity()));
   chosen_.reserve(wide::WideResult::kMaxEdges);
+  places_.reserve(static_cast<std::size_t>(store.capacity()));
   log_.resize(kLogCapacity);
 }
 
@@ -80,14 +82,17 @@ void WideCloser::submit(const cv::Mat& colour, const cv::Mat& depth, const cv::M
     }
     candidates_.push_back({distance_m, {i, stored.sequence}});
   }
-  // Recent key-frames first, then the older ones a loop closure would look for.
+  // Recent key-frames first, the nearest registered; the older ones a loop closure would look
+  // for go to place recognition, nearest first.
   const auto recent_end = std::stable_partition(candidates_.begin(), candidates_.end(), [&](const Candidate& c) {
     return store_.slot(c.keyframe.slot).sequence > current.sequence - config_.loop.min_keyframe_gap;
   });
   chosen_.clear();
   const auto split = static_cast<std::size_t>(recent_end - candidates_.begin());
   choose(0, split, config_.wide.recent_candidates);
-  choose(split, candidates_.size(), config_.wide.loop_candidates);
+  std::sort(candidates_.begin() + static_cast<std::ptrdiff_t>(split), candidates_.end());
+  places_.clear();
+  for (std::size_t i = split; i < candidates_.size(); ++i) places_.push_back(candidates_[i].keyframe);
   wide::WideSubmission submission;
   submission.colour = &colour;
   submission.depth = &depth;
@@ -95,6 +100,8 @@ void WideCloser::submit(const cv::Mat& colour, const cv::Mat& depth, const cv::M
   submission.keyframe = {keyframe_slot_, current.sequence};
   submission.T_keyframe_frame = current.T_world_cam.inverse() * T_world_cam;
   submission.candidates = chosen_;
+  submission.places = places_;
+  submission.place_count = config_.wide.loop_candidates;
   ++counters_.images;
   if (!mapper_.submit(submission)) ++counters_.dropped;
 }

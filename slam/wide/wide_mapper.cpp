@@ -7,6 +7,7 @@
 #include <sys/resource.h>
 #include <unistd.h>
 
+#include <algorithm>
 #include <stdexcept>
 
 namespace rankslam::wide {
@@ -32,6 +33,9 @@ Eigen::Matrix<double, 6, 6> edge_information(const Eigen::Isometry3d& A, const E
   return 0.5 * (out + out.transpose());
 }
 
+/// Row `r` of a CV_32F matrix.
+std::span<float> row_of(cv::Mat& m, int r) { return {m.ptr<float>(r), static_cast<std::size_t>(m.cols)}; }
+
 }  // namespace
 
 WideMapper::WideMapper(const hal::Calibration& calibration, const WideMapperOptions& options)
@@ -41,8 +45,12 @@ WideMapper::WideMapper(const hal::Calibration& calibration, const WideMapperOpti
       rgbd_extractor_(camera::DepthCameraModel(calibration), options.sift),
       registrar_(options.registration),
       stored_(static_cast<std::size_t>(std::max(options.capacity, 0))),
-      stored_sequence_(stored_.size(), -1) {
+      stored_sequence_(stored_.size(), -1),
+      vocabulary_(options.vocabulary != nullptr ? *options.vocabulary : Vocabulary::built_in()) {
   const int n = options.sift.features_per_image;
+  stored_vlad_.create(std::max(options.capacity, 1), vocabulary_.vlad_size(), CV_32F);
+  view_vlad_.create(views_.count(), vocabulary_.vlad_size(), CV_32F);
+  place_scores_.reserve(stored_.size());
   stored_descriptors_.resize(stored_.size());
   for (std::size_t i = 0; i < stored_.size(); ++i) {
     stored_[i].points.resize(3, n);
@@ -53,6 +61,7 @@ WideMapper::WideMapper(const hal::Calibration& calibration, const WideMapperOpti
     job.colour.create(calibration.rgb.height, calibration.rgb.width, CV_8UC3);
     job.depth.create(calibration.rgb.height, calibration.rgb.width, CV_16UC1);
     job.wide.create(calibration.fisheye->height, calibration.fisheye->width, CV_8UC3);
+    job.places.reserve(stored_.size());
   }
   thread_ = std::thread([this] { work(); });
 }
@@ -104,6 +113,12 @@ bool WideMapper::submit(const WideSubmission& submission) {
     if (free->candidate_count == WideResult::kMaxEdges) break;
     free->candidates[static_cast<std::size_t>(free->candidate_count++)] = candidate;
   }
+  free->places.clear();
+  for (const WideCandidate& place : submission.places) {
+    if (free->places.size() == stored_.size()) break;
+    free->places.push_back(place);
+  }
+  free->place_count = std::clamp(submission.place_count, 0, WideResult::kMaxEdges - free->candidate_count);
   lock.lock();
   free->state = State::kQueued;
   free->order = next_order_++;
@@ -152,19 +167,55 @@ void WideMapper::work() {
   }
 }
 
+bool WideMapper::holds(const WideCandidate& candidate) const {
+  return candidate.slot >= 0 && candidate.slot < static_cast<int>(stored_.size()) &&
+         stored_sequence_[static_cast<std::size_t>(candidate.slot)] == candidate.sequence;
+}
+
+void WideMapper::choose_places(Job& job) {
+  place_scores_.clear();
+  for (std::size_t p = 0; p < job.places.size(); ++p) {
+    const WideCandidate& place = job.places[p];
+    const auto already = job.candidates.begin() + job.candidate_count;
+    if (!holds(place) || std::find_if(job.candidates.begin(), already, [&](const WideCandidate& c) {
+                           return c.slot == place.slot;
+                         }) != already) {
+      continue;
+    }
+    float best = -1.0F;
+    for (int v = 0; v < view_vlad_.rows; ++v) {
+      best = std::max(best, vlad_similarity(row_of(view_vlad_, v), row_of(stored_vlad_, place.slot)));
+    }
+    place_scores_.emplace_back(best, static_cast<int>(p));
+  }
+  const auto n = std::min(place_scores_.size(), static_cast<std::size_t>(job.place_count));
+  // Most similar first; the earlier place (the nearer, as the loop lists them) breaks a tie.
+  std::partial_sort(place_scores_.begin(), place_scores_.begin() + static_cast<std::ptrdiff_t>(n), place_scores_.end(),
+                    [](const auto& a, const auto& b) { return a.first > b.first || (a.first == b.first && a.second < b.second); });
+  for (std::size_t i = 0; i < n && job.candidate_count < WideResult::kMaxEdges; ++i) {
+    job.candidates[static_cast<std::size_t>(job.candidate_count++)] =
+        job.places[static_cast<std::size_t>(place_scores_[i].second)];
+  }
+}
+
 void WideMapper::process(Job& job) {
   WideResult& result = job.result;
   result = WideResult{};
   result.keyframe = job.keyframe;
   if (wide_extractor_.extract(job.wide, wide_features_)) result.wide_features = wide_features_.count;
+  // Each view's VLAD, from its rows of the descriptors (the extractor keeps them in view order).
+  for (int v = 0, begin = 0; v < view_vlad_.rows; ++v) {
+    int end = begin;
+    while (end < wide_features_.count && wide_features_.view[static_cast<std::size_t>(end)] == v) ++end;
+    encode_vlad(vocabulary_, end > begin ? wide_features_.descriptors.rowRange(begin, end) : cv::Mat(), row_of(view_vlad_, v));
+    begin = end;
+  }
+  if (result.wide_features > 0 && job.place_count > 0) choose_places(job);
   // The image was taken with the frame: T_keyframe_wide = T_keyframe_frame · T_rgb_wide.
   const Eigen::Isometry3d T_keyframe_wide = job.T_keyframe_frame * T_rgb_wide_;
   for (int c = 0; c < job.candidate_count && result.wide_features > 0; ++c) {
     const WideCandidate& candidate = job.candidates[static_cast<std::size_t>(c)];
-    if (candidate.slot < 0 || candidate.slot >= static_cast<int>(stored_.size()) ||
-        stored_sequence_[static_cast<std::size_t>(candidate.slot)] != candidate.sequence) {
-      continue;
-    }
+    if (!holds(candidate)) continue;
     ++result.tried;
     const MonoRegistration registration =
         registrar_.register_frames(stored_[static_cast<std::size_t>(candidate.slot)], wide_features_);
@@ -175,6 +226,9 @@ void WideMapper::process(Job& job) {
     edge.information = edge_information(registration.T_wide_rgbd, registration.information);
     edge.inliers = registration.inliers;
     edge.position_sigma_m = registration.position_sigma_m;
+    for (int v = 0; v < view_vlad_.rows; ++v) {
+      edge.similarity = std::max(edge.similarity, vlad_similarity(row_of(view_vlad_, v), row_of(stored_vlad_, candidate.slot)));
+    }
   }
   // The key-frame's own features, for the images that come later.
   const auto slot = static_cast<std::size_t>(job.keyframe.slot);
@@ -188,6 +242,7 @@ void WideMapper::process(Job& job) {
     stored.descriptors = stored_descriptors_[slot].rowRange(0, n);
     frame_features_.descriptors.rowRange(0, n).copyTo(stored.descriptors);
     stored.pixel.assign(frame_features_.pixel.begin(), frame_features_.pixel.begin() + n);
+    encode_vlad(vocabulary_, stored.descriptors, row_of(stored_vlad_, job.keyframe.slot));
     result.rgbd_features = n;
     stored_sequence_[slot] = job.keyframe.sequence;
   }

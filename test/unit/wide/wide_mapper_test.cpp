@@ -33,14 +33,7 @@ class WideMapperTest : public ::testing::Test {
 
   void SetUp() override {
     dir_ = fs::temp_directory_path() / ("rankslam_wide_mapper_" + std::to_string(::getpid()));
-    fs::remove_all(dir_);
-    sim::SimulationOptions options;
-    options.scene = "corridor-loop";
-    options.out_dir = dir_;
-    options.frames = 90;
-    options.seed = 1;
-    ASSERT_EQ(sim::simulate_recording(options, nullptr), "");
-    ASSERT_EQ(replay::open_recording(dir_, recording_), "");
+    simulate("corridor-loop", 90, dir_, recording_);
     ASSERT_TRUE(recording_.calibration.fisheye.has_value());
     ASSERT_TRUE(recording_.ground_truth.has_value());
     auto truth = eval::read_tum_trajectory(*recording_.ground_truth);
@@ -48,6 +41,18 @@ class WideMapperTest : public ::testing::Test {
     truth_ = std::move(truth).value();
   }
   void TearDown() override { fs::remove_all(dir_); }
+
+  /// `frames` of `scene` (seed 1) simulated into `dir`, indexed into `recording`.
+  static void simulate(const std::string& scene, int frames, const fs::path& dir, replay::Recording& recording) {
+    fs::remove_all(dir);
+    sim::SimulationOptions options;
+    options.scene = scene;
+    options.out_dir = dir;
+    options.frames = frames;
+    options.seed = 1;
+    ASSERT_EQ(sim::simulate_recording(options, nullptr), "");
+    ASSERT_EQ(replay::open_recording(dir, recording), "");
+  }
 
   /// Frame `index`'s colour, depth and the wide-angle image nearest it.
   void load(std::size_t index, cv::Mat& colour, cv::Mat& depth, cv::Mat& wide) const {
@@ -94,7 +99,7 @@ TEST_F(WideMapperTest, RegistersALaterKeyFramesImageToAStoredOne) {
   cv::Mat colour_a, depth_a, wide_a, colour_b, depth_b, wide_b;
   load(0, colour_a, depth_a, wide_a);
   load(33, colour_b, depth_b, wide_b);
-  WideSubmission a{&colour_a, &depth_a, &wide_a, {0, 1}, Eigen::Isometry3d::Identity(), {}};
+  WideSubmission a{&colour_a, &depth_a, &wide_a, {0, 1}, Eigen::Isometry3d::Identity(), {}, {}, 0};
   const WideResult first = run(mapper, a);
   EXPECT_EQ(first.keyframe.slot, 0);
   EXPECT_GT(first.rgbd_features, 100);
@@ -103,7 +108,7 @@ TEST_F(WideMapperTest, RegistersALaterKeyFramesImageToAStoredOne) {
 
   const Eigen::Isometry3d T_b_frame = truth_at(30).inverse() * truth_at(33);
   const WideCandidate candidates[] = {{0, 1}, {0, 7}, {3, 1}};  // the second and third hold no such key-frame
-  WideSubmission b{&colour_b, &depth_b, &wide_b, {1, 2}, T_b_frame, candidates};
+  WideSubmission b{&colour_b, &depth_b, &wide_b, {1, 2}, T_b_frame, candidates, {}, 0};
   const WideResult second = run(mapper, b);
   EXPECT_EQ(second.tried, 1);
   ASSERT_EQ(second.edge_count, 1);
@@ -124,15 +129,46 @@ TEST_F(WideMapperTest, RegistersALaterKeyFramesImageToAStoredOne) {
   EXPECT_EQ(counters.dropped, 0U);
 }
 
+TEST_F(WideMapperTest, PlaceRecognitionChoosesTheKeyFrameOfTheSamePlace) {
+  // Slot 1 holds a key-frame of another scene (the simulated office), offered first; slot 0 the
+  // corridor key-frame the image sees. With one place to choose, VLAD must pick slot 0.
+  const fs::path office_dir = dir_.string() + "_office";
+  replay::Recording office_recording;
+  simulate("office", 2, office_dir, office_recording);
+  const auto& office_entry = office_recording.frames.at(0);
+  const cv::Mat office_colour = cv::imread((office_dir / office_entry.rgb_file).string(), cv::IMREAD_COLOR);
+  const cv::Mat office_depth = cv::imread((office_dir / office_entry.depth_file).string(), cv::IMREAD_UNCHANGED);
+  fs::remove_all(office_dir);
+  ASSERT_EQ(office_colour.size(), cv::Size(recording_.calibration.rgb.width, recording_.calibration.rgb.height));
+
+  WideMapperOptions options;
+  options.capacity = 4;
+  WideMapper mapper(recording_.calibration, options);
+  cv::Mat colour_a, depth_a, wide_a, colour_b, depth_b, wide_b;
+  load(0, colour_a, depth_a, wide_a);
+  load(33, colour_b, depth_b, wide_b);
+  (void)run(mapper, {&colour_a, &depth_a, &wide_a, {0, 1}, Eigen::Isometry3d::Identity(), {}, {}, 0});
+  EXPECT_GT(run(mapper, {&office_colour, &office_depth, &wide_a, {1, 2}, Eigen::Isometry3d::Identity(), {}, {}, 0}).rgbd_features, 100);
+
+  const WideCandidate places[] = {{1, 2}, {0, 1}};
+  const WideSubmission b{&colour_b, &depth_b, &wide_b, {2, 3}, truth_at(30).inverse() * truth_at(33), {}, places, 1};
+  const WideResult result = run(mapper, b);
+  EXPECT_EQ(result.tried, 1);
+  ASSERT_EQ(result.edge_count, 1);
+  EXPECT_EQ(result.edges[0].stored.slot, 0);
+  EXPECT_GT(result.edges[0].similarity, 0.0F);
+  EXPECT_LE(result.edges[0].similarity, 1.0F + 1e-5F);
+}
+
 TEST_F(WideMapperTest, RefusesImagesOfAnotherSize) {
   WideMapper mapper(recording_.calibration, {});
   cv::Mat colour, depth, wide;
   load(0, colour, depth, wide);
   const cv::Mat small(wide.rows / 2, wide.cols / 2, CV_8UC3, cv::Scalar::all(0));
   const cv::Mat depth_8u(depth.size(), CV_8UC1, cv::Scalar::all(0));
-  EXPECT_FALSE(mapper.submit({&colour, &depth, &small, {0, 1}, Eigen::Isometry3d::Identity(), {}}));
-  EXPECT_FALSE(mapper.submit({&colour, &depth_8u, &wide, {0, 1}, Eigen::Isometry3d::Identity(), {}}));
-  EXPECT_FALSE(mapper.submit({&colour, &depth, &wide, {-1, 1}, Eigen::Isometry3d::Identity(), {}}));
+  EXPECT_FALSE(mapper.submit({&colour, &depth, &small, {0, 1}, Eigen::Isometry3d::Identity(), {}, {}, 0}));
+  EXPECT_FALSE(mapper.submit({&colour, &depth_8u, &wide, {0, 1}, Eigen::Isometry3d::Identity(), {}, {}, 0}));
+  EXPECT_FALSE(mapper.submit({&colour, &depth, &wide, {-1, 1}, Eigen::Isometry3d::Identity(), {}, {}, 0}));
   EXPECT_EQ(mapper.counters().dropped, 3U);
   EXPECT_EQ(mapper.counters().submitted, 0U);
 }

@@ -43,7 +43,8 @@ namespace rankslam::slam {
 /// (FrameImages), and the tracker carries the pose across the switch.
 class SlamLoop {
  public:
-  SlamLoop(const SlamConfig& config, const hal::Calibration& calibration);
+  /// `vocabulary`: the wide-angle camera's place-recognition words (null: the built-in ones).
+  SlamLoop(const SlamConfig& config, const hal::Calibration& calibration, const wide::Vocabulary* vocabulary = nullptr);
 
   [[nodiscard]] FrameResult process(const hal::RgbdFrame& frame);
   /// As process(frame), with the wheel motion since the previous frame; null: no prior.

@@ -28,14 +28,15 @@ struct WideCounters {
 /// The wide-angle camera in the loop (docs/methods.md §14): at each key-frame the first paired
 /// image of a frame tracked from it goes, with the frame's colour and depth, to the
 /// wide::WideMapper, which registers it to the stored key-frames chosen here (the nearest recent
-/// and older ones the wide-angle camera can see); a registration that fits the chain as a loop
+/// ones the wide-angle camera can see) and to the older ones it can see whose VLAD is most
+/// similar to the image's views (place recognition, ALGORITHMS.md §6.4); a registration that fits the chain as a loop
 /// closure must (the edge-consistency check, ALGORITHMS.md §6.6) joins the pose graph as an edge
 /// between the image's key-frame and the stored one. Everything is sized at construction.
 class WideCloser {
  public:
   /// `calibration` must hold `fisheye`; the store, loop closer and back-end are the loop's.
   WideCloser(const SlamConfig& config, const hal::Calibration& calibration, KeyframeStore& store,
-             const LoopCloser& loop_closer, Backend& backend);
+             const LoopCloser& loop_closer, Backend& backend, const wide::Vocabulary* vocabulary = nullptr);
 
   /// Offline replay: each image's registrations join the graph at the next key-frame's image,
   /// waiting for them, so the result does not depend on thread timing.
@@ -84,6 +85,7 @@ class WideCloser {
   bool keyframe_has_image_ = true;
   std::vector<Candidate> candidates_;
   std::vector<wide::WideCandidate> chosen_;
+  std::vector<wide::WideCandidate> places_;
   WideCounters counters_;
   std::vector<LoopClosure> log_;
 };

@@ -4,6 +4,7 @@
 #include "rankslam/hal/calibration.hpp"
 #include "rankslam/wide/features.hpp"
 #include "rankslam/wide/mono_registrar.hpp"
+#include "rankslam/wide/vlad.hpp"
 
 #include <Eigen/Geometry>
 #include <opencv2/core/mat.hpp>
@@ -25,6 +26,8 @@ struct WideMapperOptions {
   SiftOptions sift;
   MonoRegistrationOptions registration;
   camera::VirtualViewOptions views;
+  /// Place recognition's words; null: the built-in vocabulary. Copied at construction.
+  const Vocabulary* vocabulary = nullptr;
 };
 
 /// A stored key-frame a wide-angle image is registered to: its slot and its sequence there (a
@@ -46,6 +49,8 @@ struct WideEdge {
   Eigen::Matrix<double, 6, 6> information = Eigen::Matrix<double, 6, 6>::Zero();
   int inliers = 0;
   double position_sigma_m = 0.0;
+  /// VLAD similarity of the stored key-frame to the image's most similar virtual view.
+  float similarity = 0.0F;
 };
 
 struct WideResult {
@@ -70,6 +75,11 @@ struct WideSubmission {
   /// The frame's colour camera in the key-frame's.
   Eigen::Isometry3d T_keyframe_frame = Eigen::Isometry3d::Identity();
   std::span<const WideCandidate> candidates;  ///< at most WideResult::kMaxEdges
+  /// Stored key-frames the image may also be registered to, by place recognition: the
+  /// `place_count` whose VLAD is most similar to one of the image's virtual views' (§6.4).
+  /// At most the mapper's capacity; those among `candidates` are passed over.
+  std::span<const WideCandidate> places;
+  int place_count = 0;
 };
 
 /// What the mapper has done.
@@ -83,7 +93,8 @@ struct WideMapperCounters {
 /// own behind a queue of kJobs: per key-frame, SIFT on the frame's colour image (kept per
 /// key-frame slot, its points moved into the key-frame's frame) and on the nine virtual views of
 /// its wide-angle image, then the image registered to the stored key-frames it was given (P3P +
-/// MSSE on the rays). The images' buffers, the queue and the per-slot features are allocated at
+/// MSSE on the rays), to the key-frames it was given and to those of the places it was offered
+/// whose VLAD is nearest the views'. The images' buffers, the queue and the per-slot features are allocated at
 /// construction; the loop's thread copies into them and allocates nothing.
 class WideMapper {
  public:
@@ -135,11 +146,16 @@ class WideMapper {
     Eigen::Isometry3d T_keyframe_frame = Eigen::Isometry3d::Identity();
     std::array<WideCandidate, WideResult::kMaxEdges> candidates;
     int candidate_count = 0;
+    std::vector<WideCandidate> places;  ///< capacity reserved at set-up
+    int place_count = 0;
     WideResult result;
   };
 
   void work();
   void process(Job& job);
+  /// Adds to the job's candidates the places whose VLAD is nearest the views' in view_vlad_.
+  void choose_places(Job& job);
+  [[nodiscard]] bool holds(const WideCandidate& candidate) const;
 
   Eigen::Isometry3d T_rgb_wide_;
   camera::VirtualViews views_;
@@ -152,6 +168,10 @@ class WideMapper {
   std::vector<RgbdFeatures> stored_;
   std::vector<std::int64_t> stored_sequence_;
   std::vector<cv::Mat> stored_descriptors_;  ///< each slot's descriptor rows, allocated at set-up
+  Vocabulary vocabulary_;
+  cv::Mat stored_vlad_;  ///< per slot, its key-frame's VLAD (a row)
+  cv::Mat view_vlad_;    ///< per virtual view of the image in hand, its VLAD (a row)
+  std::vector<std::pair<float, int>> place_scores_;  ///< (similarity, index into the job's places)
 
   mutable std::mutex mutex_;
   std::condition_variable wake_;
