@@ -82,8 +82,8 @@ void WideCloser::submit(const cv::Mat& colour, const cv::Mat& depth, const cv::M
     }
     candidates_.push_back({distance_m, {i, stored.sequence}});
   }
-  // Recent key-frames first, the nearest registered; the older ones a loop closure would look
-  // for go to place recognition, nearest first.
+  // Recent key-frames first, then the older ones a loop closure would look for: the nearest, and
+  // the others to place recognition, nearest first.
   const auto recent_end = std::stable_partition(candidates_.begin(), candidates_.end(), [&](const Candidate& c) {
     return store_.slot(c.keyframe.slot).sequence > current.sequence - config_.loop.min_keyframe_gap;
   });
@@ -91,8 +91,11 @@ void WideCloser::submit(const cv::Mat& colour, const cv::Mat& depth, const cv::M
   const auto split = static_cast<std::size_t>(recent_end - candidates_.begin());
   choose(0, split, config_.wide.recent_candidates);
   std::sort(candidates_.begin() + static_cast<std::ptrdiff_t>(split), candidates_.end());
+  choose(split, candidates_.size(), config_.wide.loop_candidates);
   places_.clear();
-  for (std::size_t i = split; i < candidates_.size(); ++i) places_.push_back(candidates_[i].keyframe);
+  for (std::size_t i = split + static_cast<std::size_t>(std::max(config_.wide.loop_candidates, 0)); i < candidates_.size(); ++i) {
+    places_.push_back(candidates_[i].keyframe);
+  }
   wide::WideSubmission submission;
   submission.colour = &colour;
   submission.depth = &depth;
@@ -101,7 +104,7 @@ void WideCloser::submit(const cv::Mat& colour, const cv::Mat& depth, const cv::M
   submission.T_keyframe_frame = current.T_world_cam.inverse() * T_world_cam;
   submission.candidates = chosen_;
   submission.places = places_;
-  submission.place_count = config_.wide.loop_candidates;
+  submission.place_count = config_.wide.place_candidates;
   ++counters_.images;
   if (!mapper_.submit(submission)) ++counters_.dropped;
 }

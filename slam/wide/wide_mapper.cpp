@@ -178,7 +178,7 @@ void WideMapper::choose_places(Job& job) {
     const WideCandidate& place = job.places[p];
     const auto already = job.candidates.begin() + job.candidate_count;
     if (!holds(place) || std::find_if(job.candidates.begin(), already, [&](const WideCandidate& c) {
-                           return c.slot == place.slot;
+                           return c.slot == place.slot && c.sequence == place.sequence;
                          }) != already) {
       continue;
     }

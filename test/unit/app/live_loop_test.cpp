@@ -376,6 +376,7 @@ TEST_F(LiveLoopTest, WideAngleKeyFramesAllocateNothingOnTheLoopsThread) {
   slam::SlamConfig config;
   config.wide.recent_candidates = 2;
   config.wide.loop_candidates = 2;
+  config.wide.place_candidates = 2;
   FramePipeline pipeline(config, camera.calibration(), nullptr, pipeline_options);
   ASSERT_NE(pipeline.loop().wide_counters(), nullptr);
   hal::RgbdFrame frame;

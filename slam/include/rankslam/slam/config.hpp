@@ -184,13 +184,14 @@ struct LoopConfig {
 /// loop closure must (loop_max_correction_* and loop_drift_*) join the pose graph. Keys `slam.wide_*`.
 struct WideConfig {
   // Candidates per image: the nearest stored key-frames among the recent ones (older than the
-  // previous key-frame, newer than loop_min_keyframe_gap), and among the older ones those whose
-  // VLAD is most similar to one of the image's virtual views'; both 0: the
+  // previous key-frame, newer than loop_min_keyframe_gap) and among the older ones, and of the
+  // other older ones those whose VLAD is most similar to one of the image's virtual views'; all 0: the
   // wide-angle camera's images are not used. Off by default: on the corridor loop the edges
   // helped no seed beyond a few per cent and cost accuracy with wheels (docs/results.md §10.4);
   // 2 and 2 is what was measured.
   int recent_candidates = 0;
   int loop_candidates = 0;
+  int place_candidates = 0;
   // Candidates lie this close to the image's camera (plus the drift allowance) and look at most
   // this far from its direction.
   double search_radius_m = 3.0;
@@ -200,14 +201,16 @@ struct WideConfig {
   int min_inliers = 12;
   double max_position_sigma_m = 0.03;
 
-  [[nodiscard]] bool enabled() const { return recent_candidates + loop_candidates > 0; }
+  [[nodiscard]] bool enabled() const { return recent_candidates + loop_candidates + place_candidates > 0; }
 
   template <typename Visitor>
   void visit_parameters(Visitor&& visit) {
     visit("wide_recent_candidates", recent_candidates, 0, 4, "",
           "recent stored key-frames (not the previous one, newer than loop_min_keyframe_gap) each wide-angle image is registered to");
     visit("wide_loop_candidates", loop_candidates, 0, 4, "",
-          "older stored key-frames each wide-angle image is registered to, the most similar by VLAD (both 0: the wide-angle camera is not used)");
+          "older stored key-frames each wide-angle image is registered to, the nearest");
+    visit("wide_place_candidates", place_candidates, 0, 4, "",
+          "more older stored key-frames each wide-angle image is registered to, the most similar by VLAD (all three 0: the wide-angle camera is not used)");
     visit("wide_search_radius_m", search_radius_m, 0.0, 100.0, "m",
           "wide-angle candidates lie this close to the image's camera, plus the drift allowance");
     visit("wide_search_rotation_deg", search_rotation_deg, 0.0, 180.0, "deg",

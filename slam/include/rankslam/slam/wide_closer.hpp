@@ -28,8 +28,8 @@ struct WideCounters {
 /// The wide-angle camera in the loop (docs/methods.md §14): at each key-frame the first paired
 /// image of a frame tracked from it goes, with the frame's colour and depth, to the
 /// wide::WideMapper, which registers it to the stored key-frames chosen here (the nearest recent
-/// ones the wide-angle camera can see) and to the older ones it can see whose VLAD is most
-/// similar to the image's views (place recognition, ALGORITHMS.md §6.4); a registration that fits the chain as a loop
+/// and older ones the wide-angle camera can see) and to the other older ones it can see whose
+/// VLAD is most similar to the image's views (place recognition, ALGORITHMS.md §6.4); a registration that fits the chain as a loop
 /// closure must (the edge-consistency check, ALGORITHMS.md §6.6) joins the pose graph as an edge
 /// between the image's key-frame and the stored one. Everything is sized at construction.
 class WideCloser {
