@@ -91,10 +91,14 @@ void WideCloser::submit(const cv::Mat& colour, const cv::Mat& depth, const cv::M
   const auto split = static_cast<std::size_t>(recent_end - candidates_.begin());
   choose(0, split, config_.wide.recent_candidates);
   std::sort(candidates_.begin() + static_cast<std::ptrdiff_t>(split), candidates_.end());
-  choose(split, candidates_.size(), config_.wide.loop_candidates);
+  const std::size_t nearest_end = split + static_cast<std::size_t>(std::max(config_.wide.loop_candidates, 0));
   places_.clear();
-  for (std::size_t i = split + static_cast<std::size_t>(std::max(config_.wide.loop_candidates, 0)); i < candidates_.size(); ++i) {
-    places_.push_back(candidates_[i].keyframe);
+  for (std::size_t i = split; i < candidates_.size(); ++i) {
+    if (i >= nearest_end) {
+      places_.push_back(candidates_[i].keyframe);
+    } else if (chosen_.size() < wide::WideResult::kMaxEdges) {
+      chosen_.push_back(candidates_[i].keyframe);
+    }
   }
   wide::WideSubmission submission;
   submission.colour = &colour;
