@@ -32,16 +32,20 @@ class WideMapperTest : public ::testing::Test {
   // see (TBB is not instrumented); what is tested here is the mapper's own thread and queue.
   static void SetUpTestSuite() { cv::setNumThreads(1); }
 
-  void SetUp() override {
+  /// The first `frames` of the corridor loop and their ground truth (simulating is what costs:
+  /// each test asks only for the frames it reads).
+  void prepare(int frames) {
     dir_ = fs::temp_directory_path() / ("rankslam_wide_mapper_" + std::to_string(::getpid()));
-    simulate("corridor-loop", 90, dir_, recording_);
+    simulate("corridor-loop", frames, dir_, recording_);
     ASSERT_TRUE(recording_.calibration.fisheye.has_value());
     ASSERT_TRUE(recording_.ground_truth.has_value());
     auto truth = eval::read_tum_trajectory(*recording_.ground_truth);
     ASSERT_TRUE(truth.ok());
     truth_ = std::move(truth).value();
   }
-  void TearDown() override { fs::remove_all(dir_); }
+  void TearDown() override {
+    if (!dir_.empty()) fs::remove_all(dir_);
+  }
 
   /// `frames` of `scene` (seed 1) simulated into `dir`, indexed into `recording`.
   static void simulate(const std::string& scene, int frames, const fs::path& dir, replay::Recording& recording) {
@@ -92,6 +96,7 @@ WideResult run(WideMapper& mapper, const WideSubmission& submission) {
 }
 
 TEST_F(WideMapperTest, RegistersALaterKeyFramesImageToAStoredOne) {
+  ASSERT_NO_FATAL_FAILURE(prepare(34));
   WideMapperOptions options;
   options.capacity = 4;
   WideMapper mapper(recording_.calibration, options);
@@ -145,6 +150,7 @@ TEST_F(WideMapperTest, RegistersALaterKeyFramesImageToAStoredOne) {
 }
 
 TEST_F(WideMapperTest, RefusesImagesOfAnotherSize) {
+  ASSERT_NO_FATAL_FAILURE(prepare(1));
   WideMapper mapper(recording_.calibration, {});
   cv::Mat colour, depth, wide;
   load(0, colour, depth, wide);
