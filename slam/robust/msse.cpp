@@ -7,24 +7,39 @@
 
 namespace rankslam::robust {
 
-int msse_transition(std::span<const double> sorted_sq_residuals, int k0, int parameter_count,
-                    double transition_factor, double* sigma_sq) {
+namespace {
+
+template <class T>
+int transition_of(std::span<const T> sorted_sq_residuals, int k0, int parameter_count,
+                  double transition_factor, double* sigma_sq) {
   const auto n = static_cast<int>(sorted_sq_residuals.size());
   k0 = std::clamp(k0, parameter_count + 1, std::max(n, parameter_count + 1));
-  const double* r2 = sorted_sq_residuals.data();
+  const T* r2 = sorted_sq_residuals.data();
   double sum = 0.0;
-  for (int i = 0; i < std::min(k0, n); ++i) sum += r2[i];
+  for (int i = 0; i < std::min(k0, n); ++i) sum += static_cast<double>(r2[i]);
   const double factor_sq = transition_factor * transition_factor;
   int j = std::min(k0, n);
   // Eq. 4.4 with squares on both sides: r_(j+1) ≤ T·σ_j ⇔ r_(j+1)² ≤ T²·Σ_{i≤j} r_(i)² / (j − p).
-  while (j < n && r2[j] * static_cast<double>(j - parameter_count) <= factor_sq * sum) {
-    sum += r2[j];
+  while (j < n && static_cast<double>(r2[j]) * static_cast<double>(j - parameter_count) <= factor_sq * sum) {
+    sum += static_cast<double>(r2[j]);
     ++j;
   }
   if (sigma_sq != nullptr) {
     *sigma_sq = j > parameter_count ? sum / static_cast<double>(j - parameter_count) : 0.0;
   }
   return j;
+}
+
+}  // namespace
+
+int msse_transition(std::span<const double> sorted_sq_residuals, int k0, int parameter_count,
+                    double transition_factor, double* sigma_sq) {
+  return transition_of(sorted_sq_residuals, k0, parameter_count, transition_factor, sigma_sq);
+}
+
+int msse_transition(std::span<const float> sorted_sq_residuals, int k0, int parameter_count,
+                    double transition_factor, double* sigma_sq) {
+  return transition_of(sorted_sq_residuals, k0, parameter_count, transition_factor, sigma_sq);
 }
 
 int msse_first_order(double min_inlier_fraction, int n, int parameter_count, int sample_size) {

@@ -92,6 +92,24 @@ TEST(MsseTransition, HandComputedExample) {
   EXPECT_DOUBLE_EQ(sigma_sq, 104.0 / 5.0);
 }
 
+TEST(MsseTransition, SinglePrecisionMatchesDouble) {
+  // The float overload (image saliency) segments as the double one on the same values.
+  std::vector<double> r2;
+  std::vector<float> r2f;
+  for (int i = 0; i < 1000; ++i) {
+    const double v = i < 800 ? 0.5 + 0.001 * i : 40.0 + i;
+    r2.push_back(static_cast<double>(static_cast<float>(v)));
+    r2f.push_back(static_cast<float>(v));
+  }
+  double sd = 0.0;
+  double sf = 0.0;
+  const int jd = msse_transition(std::span<const double>(r2), 200, 0, 2.5, &sd);
+  const int jf = msse_transition(std::span<const float>(r2f), 200, 0, 2.5, &sf);
+  EXPECT_EQ(jd, 800);
+  EXPECT_EQ(jf, jd);
+  EXPECT_DOUBLE_EQ(sf, sd);
+}
+
 TEST(MsseTransition, EdgeCases) {
   const std::vector<double> zeros(10, 0.0);
   double sigma_sq = -1.0;

@@ -56,7 +56,8 @@ class FeatureExtractor {
   Ros2dDetector ros2d_;
   cv::Ptr<cv::Feature2D> sift_;
   cv::Ptr<cv::Feature2D> orb_;
-  cv::Mat grey_;
+  cv::Mat grey_;       // the image being worked on: the caller's grey image or converted_
+  cv::Mat converted_;  // grey of a BGR input
 };
 
 }  // namespace rankslam::features

@@ -28,7 +28,8 @@ struct Ros2dOptions {
   /// Histogram-equalise the grey image first (§7.1, for lighting invariance).
   bool equalize = true;
   /// Pixels of each octave a feature keeps from the border, beyond the kernel's half-width, so
-  /// its descriptor window stays mostly inside the image. Range [0, 64].
+  /// its descriptor window stays mostly inside the image; at least 1 (the 3×3 neighbourhood).
+  /// Range [1, 64].
   int border_px = 4;
   /// Keep only a point whose residual is the largest of its 3×3 neighbours in its layer (a
   /// plateau of equal residuals keeps one). Off keeps every point of the second group, as the
@@ -65,29 +66,35 @@ class Ros2dDetector {
   /// Set-up: workspaces for images up to `size` and room for `max_keypoints` keypoints.
   void reserve(cv::Size size, int max_keypoints);
 
-  /// Features of an 8-bit grey image (CV_8UC1). cv::KeyPoint: pt in full-resolution pixels,
-  /// size = the SIFT-equivalent diameter (2·σ·2^octave·... see methods §15), angle in degrees
-  /// [0, 360) (SIFT's convention), response = the residual, octave = octave index, class_id =
-  /// layer. False (keypoints empty) for an empty or non-CV_8UC1 image or one too small for one
-  /// octave's kernel.
+  /// Features of an 8-bit grey image (CV_8UC1), strongest residual first. cv::KeyPoint: pt in
+  /// full-resolution pixels, size = 2·σ_layer·2^octave (SIFT's convention, so that OpenCV's SIFT
+  /// computes descriptors on it), angle in degrees [0, 360) in image axes, response = the
+  /// residual, octave = octave | layer << 8 (SIFT's packing), class_id = layer. False (keypoints
+  /// empty) for an empty or non-CV_8UC1 image or one too small for one octave's kernel.
   bool detect(const cv::Mat& grey, std::vector<cv::KeyPoint>& keypoints);
 
   /// The histogram-equalised image of the last detect() (the input itself when equalize is off):
   /// the image the thesis computes SIFT descriptors on (§7.5).
-  [[nodiscard]] const cv::Mat& equalized() const { return equalized_; }
+  [[nodiscard]] const cv::Mat& equalized() const { return equalized_view_; }
   [[nodiscard]] const Ros2dStats& stats() const { return stats_; }
 
   /// The 1-D kernel half-width shared by every layer, set by the largest σ (§7.2).
   [[nodiscard]] int kernel_radius() const { return radius_; }
 
  private:
-  struct Layer;
+  void prepare_gradients(int octave, int layer);
+  void add_oriented(const cv::KeyPoint& candidate, std::vector<cv::KeyPoint>& out, std::size_t cap);
+
   Ros2dOptions options_;
   int radius_ = 0;
   std::vector<std::vector<float>> kernels_;  // per layer: 2·radius + 1 taps summing to 1
+  std::vector<std::vector<float>> orientation_weights_;  // per layer: the orientation window
+  std::vector<int> orientation_radius_;
   cv::Mat equalized_;
-  std::vector<cv::Mat> octave_images_;       // CV_32F, per octave
-  std::vector<cv::Mat> residuals_;           // CV_32F, per octave × layer
+  cv::Mat equalized_view_;                   // equalized_ at the last image's size
+  std::vector<cv::Mat> octave_images_;       // CV_32F, per octave: I and I²
+  std::vector<cv::Mat> residuals_;           // CV_32F, per octave × layer: residual, mean, |∇|, bin
+  std::vector<std::uint8_t> gradients_ready_;
   cv::Mat blur_a_, blur_b_, tmp_;            // per-octave scratch
   std::vector<float> values_;                // all residuals, for the sort
   std::vector<float> sort_scratch_;

@@ -70,6 +70,12 @@ struct MsseConfig {
                                   int parameter_count, double transition_factor,
                                   double* sigma_sq = nullptr);
 
+/// The same on single-precision squared residuals (image saliency: millions of values, ch. 7);
+/// the running sum is kept in double.
+[[nodiscard]] int msse_transition(std::span<const float> sorted_sq_residuals, int k0,
+                                  int parameter_count, double transition_factor,
+                                  double* sigma_sq = nullptr);
+
 /// k0 = ⌈κ·n⌉, raised to at least p + 1 (σ_j needs j > p) and the minimal sample size.
 [[nodiscard]] int msse_first_order(double min_inlier_fraction, int n, int parameter_count,
                                    int sample_size);
