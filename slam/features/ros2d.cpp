@@ -79,6 +79,13 @@ void equalize(const cv::Mat& grey, cv::Mat& out) {
   }
 }
 
+// The orientation histogram bin of a gradient: its angle in degrees [0, 360) in image axes (y
+// down), as cv::KeyPoint, rounded to the nearest of kOrientationBins.
+int orientation_bin(float dx, float dy) {
+  const int bin = static_cast<int>(cv::fastAtan2(dy, dx) * (kOrientationBins / 360.0F) + 0.5F);
+  return bin >= kOrientationBins ? bin - kOrientationBins : bin;
+}
+
 // Valid interior of an octave image for a kernel of half-width r: [r, size − r).
 struct Interior {
   int x0, x1, y0, y1;
@@ -158,6 +165,7 @@ void Ros2dDetector::reserve(cv::Size size, int max_keypoints) {
   sort_scratch_.resize(total);
   candidates_.reserve(total);
   gradients_ready_.assign(static_cast<std::size_t>(octaves * layers), 0);
+  window_points_.assign(static_cast<std::size_t>(octaves * layers), 0);
   (void)max_keypoints;
 }
 
@@ -332,15 +340,32 @@ bool Ros2dDetector::detect(const cv::Mat& grey, std::vector<cv::KeyPoint>& keypo
     s = cv::Size(s.width / 2, s.height / 2);
   }
   // Strongest first; ties in a fixed order so that the output never depends on the sort.
-  std::sort(candidates_.begin(), candidates_.end(), [](const cv::KeyPoint& a, const cv::KeyPoint& b) {
+  const auto stronger = [](const cv::KeyPoint& a, const cv::KeyPoint& b) {
     if (a.response != b.response) return a.response > b.response;
     if (a.octave != b.octave) return a.octave < b.octave;
     if (a.pt.y != b.pt.y) return a.pt.y < b.pt.y;
     return a.pt.x < b.pt.x;
-  });
+  };
   const std::size_t cap = options_.max_features > 0 ? static_cast<std::size_t>(options_.max_features)
                                                      : std::numeric_limits<std::size_t>::max();
-  for (const cv::KeyPoint& c : candidates_) {
+  // Each candidate gives at least one keypoint, so only the `cap` strongest can be returned.
+  auto last = candidates_.end();
+  if (cap < candidates_.size()) {
+    last = candidates_.begin() + static_cast<std::ptrdiff_t>(cap);
+    std::nth_element(candidates_.begin(), last, candidates_.end(), stronger);
+  }
+  std::sort(candidates_.begin(), last, stronger);
+  if (options_.orientation) {
+    // A layer's gradient table pays off once its windows cover more points than the layer has.
+    std::fill(window_points_.begin(), window_points_.end(), 0);
+    for (auto it = candidates_.begin(); it != last; ++it) {
+      const int l = it->class_id;
+      const int side = 2 * orientation_radius_[static_cast<std::size_t>(l)] + 1;
+      window_points_[static_cast<std::size_t>((it->octave & 0xff) * layers + l)] += side * side;
+    }
+  }
+  for (auto it = candidates_.begin(); it != last; ++it) {
+    const cv::KeyPoint& c = *it;
     if (keypoints.size() >= cap) break;
     if (!options_.orientation) {
       keypoints.push_back(c);
@@ -372,10 +397,7 @@ void Ros2dDetector::prepare_gradients(int octave, int layer) {
       const float dx = m[x + 1] - m[x - 1];
       const float dy = dn[x] - up[x];
       mg[x] = std::sqrt(dx * dx + dy * dy);
-      // The histogram bin of the angle in degrees [0, 360), image axes (y down), as cv::KeyPoint.
-      int bin = static_cast<int>(std::lround(cv::fastAtan2(dy, dx) * (kOrientationBins / 360.0F)));
-      if (bin >= kOrientationBins) bin -= kOrientationBins;
-      an[x] = static_cast<float>(bin);
+      an[x] = static_cast<float>(orientation_bin(dx, dy));
     }
   }
   gradients_ready_[index] = 1;
@@ -384,12 +406,14 @@ void Ros2dDetector::prepare_gradients(int octave, int layer) {
 void Ros2dDetector::add_oriented(const cv::KeyPoint& c, std::vector<cv::KeyPoint>& out, std::size_t cap) {
   const int o = c.octave & 0xff;
   const int l = c.class_id;
-  prepare_gradients(o, l);
   const std::size_t index = static_cast<std::size_t>(o * options_.layers + l);
-  const cv::Mat& mag = residuals_[4 * index + 2];
-  const cv::Mat& ang = residuals_[4 * index + 3];
   const int w = equalized_view_.cols >> o;
   const int h = equalized_view_.rows >> o;
+  const bool table = window_points_[index] > static_cast<std::int64_t>(w) * h;
+  if (table) prepare_gradients(o, l);
+  const cv::Mat& mean = residuals_[4 * index + 1];
+  const cv::Mat& mag = residuals_[4 * index + 2];
+  const cv::Mat& ang = residuals_[4 * index + 3];
   const float step = static_cast<float>(1 << o);
   const int cx = static_cast<int>(std::lround((c.pt.x + 0.5F) / step - 0.5F));
   const int cy = static_cast<int>(std::lround((c.pt.y + 0.5F) / step - 0.5F));
@@ -406,8 +430,18 @@ void Ros2dDetector::add_oriented(const cv::KeyPoint& c, std::vector<cv::KeyPoint
     const float* wrow = weights + (dy + radius) * (2 * radius + 1) + radius;
     const int x0 = std::max(-radius, lo - cx);
     const int x1 = std::min(radius, w - lo - 1 - cx);
+    if (table) {
+      for (int dx = x0; dx <= x1; ++dx) hist[static_cast<int>(an[cx + dx])] += wrow[dx] * mg[cx + dx];
+      continue;
+    }
+    const float* up = mean.ptr<float>(y - 1);
+    const float* m = mean.ptr<float>(y);
+    const float* dn = mean.ptr<float>(y + 1);
     for (int dx = x0; dx <= x1; ++dx) {
-      hist[static_cast<int>(an[cx + dx])] += wrow[dx] * mg[cx + dx];
+      const int x = cx + dx;
+      const float gx = m[x + 1] - m[x - 1];
+      const float gy = dn[x] - up[x];
+      hist[orientation_bin(gx, gy)] += wrow[dx] * std::sqrt(gx * gx + gy * gy);
     }
   }
   // SIFT's [1 4 6 4 1]/16 smoothing of the circular histogram.

@@ -95,6 +95,7 @@ class Ros2dDetector {
   std::vector<cv::Mat> octave_images_;       // CV_32F, per octave: I and I²
   std::vector<cv::Mat> residuals_;           // CV_32F, per octave × layer: residual, mean, |∇|, bin
   std::vector<std::uint8_t> gradients_ready_;
+  std::vector<std::int64_t> window_points_;  // per layer: orientation window points to visit
   cv::Mat blur_a_, blur_b_, tmp_;            // per-octave scratch
   std::vector<float> values_;                // all residuals, for the sort
   std::vector<float> sort_scratch_;
