@@ -160,7 +160,7 @@ void Ros2dDetector::reserve(cv::Size size, int max_keypoints) {
   }
   blur_a_.create(size, CV_32F);
   blur_b_.create(size, CV_32F);
-  tmp_.create(1, std::max(size.width, size.height) + 1, CV_32F);
+  tmp_.create(parallel::ThreadTeam::kMaxThreads, size.width + 1, CV_32F);  // a row per thread
   values_.resize(total);
   sort_scratch_.resize(total);
   candidates_.reserve(total);
@@ -227,50 +227,54 @@ bool Ros2dDetector::detect(const cv::Mat& grey, std::vector<cv::KeyPoint>& keypo
       const float* g = kernels_[static_cast<std::size_t>(l)].data() + R;  // g[-R..R]
       // r = Σ w_j (I_c − I_j)² = I_c² − 2·I_c·(G∗I) + G∗I² (Σ w_j = 1): two separable filters of
       // the interior instead of a (2R+1)² window per point.
-      for (int y = 0; y < s.height; ++y) {
-        const float* a = I.ptr<float>(y);
-        const float* b = I2.ptr<float>(y);
-        float* ha = HA.ptr<float>(y);
-        float* hb = HB.ptr<float>(y);
-        for (int x = in.x0; x < in.x1; ++x) {
-          ha[x] = g[0] * a[x];
-          hb[x] = g[0] * b[x];
-        }
-        for (int k = 1; k <= R; ++k) {
-          const float w = g[k];
+      for_rows(0, s.height, [&](int y0, int y1, int) {
+        for (int y = y0; y < y1; ++y) {
+          const float* a = I.ptr<float>(y);
+          const float* b = I2.ptr<float>(y);
+          float* ha = HA.ptr<float>(y);
+          float* hb = HB.ptr<float>(y);
           for (int x = in.x0; x < in.x1; ++x) {
-            ha[x] += w * (a[x - k] + a[x + k]);
-            hb[x] += w * (b[x - k] + b[x + k]);
+            ha[x] = g[0] * a[x];
+            hb[x] = g[0] * b[x];
+          }
+          for (int k = 1; k <= R; ++k) {
+            const float w = g[k];
+            for (int x = in.x0; x < in.x1; ++x) {
+              ha[x] += w * (a[x - k] + a[x + k]);
+              hb[x] += w * (b[x - k] + b[x + k]);
+            }
           }
         }
-      }
+      });
       cv::Mat& res = residuals_[static_cast<std::size_t>(4 * (o * layers + l))];
       cv::Mat& mean = residuals_[static_cast<std::size_t>(4 * (o * layers + l) + 1)];
-      float* acc = tmp_.ptr<float>(0);
-      for (int y = in.y0; y < in.y1; ++y) {
-        float* m = mean.ptr<float>(y);
-        const float* ha0 = HA.ptr<float>(y);
-        const float* hb0 = HB.ptr<float>(y);
-        for (int x = in.x0; x < in.x1; ++x) {
-          m[x] = g[0] * ha0[x];
-          acc[x] = g[0] * hb0[x];
-        }
-        for (int k = 1; k <= R; ++k) {
-          const float w = g[k];
-          const float* ua = HA.ptr<float>(y - k);
-          const float* da = HA.ptr<float>(y + k);
-          const float* ub = HB.ptr<float>(y - k);
-          const float* db = HB.ptr<float>(y + k);
+      for_rows(in.y0, in.y1, [&](int y0, int y1, int thread) {
+        float* acc = tmp_.ptr<float>(thread);
+        for (int y = y0; y < y1; ++y) {
+          float* m = mean.ptr<float>(y);
+          const float* ha0 = HA.ptr<float>(y);
+          const float* hb0 = HB.ptr<float>(y);
           for (int x = in.x0; x < in.x1; ++x) {
-            m[x] += w * (ua[x] + da[x]);
-            acc[x] += w * (ub[x] + db[x]);
+            m[x] = g[0] * ha0[x];
+            acc[x] = g[0] * hb0[x];
           }
+          for (int k = 1; k <= R; ++k) {
+            const float w = g[k];
+            const float* ua = HA.ptr<float>(y - k);
+            const float* da = HA.ptr<float>(y + k);
+            const float* ub = HB.ptr<float>(y - k);
+            const float* db = HB.ptr<float>(y + k);
+            for (int x = in.x0; x < in.x1; ++x) {
+              m[x] += w * (ua[x] + da[x]);
+              acc[x] += w * (ub[x] + db[x]);
+            }
+          }
+          const float* c = I.ptr<float>(y);
+          const float* c2 = I2.ptr<float>(y);
+          float* r = res.ptr<float>(y);
+          for (int x = in.x0; x < in.x1; ++x) r[x] = std::max(0.0F, c2[x] - 2.0F * c[x] * m[x] + acc[x]);
         }
-        const float* c = I.ptr<float>(y);
-        const float* c2 = I2.ptr<float>(y);
-        float* r = res.ptr<float>(y);
-        for (int x = in.x0; x < in.x1; ++x) r[x] = std::max(0.0F, c2[x] - 2.0F * c[x] * m[x] + acc[x]);
-      }
+      });
       // The residuals that compete: those at least `margin` from the border.
       for (int y = margin; y < s.height - margin; ++y) {
         const float* r = res.ptr<float>(y);
@@ -377,6 +381,19 @@ bool Ros2dDetector::detect(const cv::Mat& grey, std::vector<cv::KeyPoint>& keypo
   return true;
 }
 
+void Ros2dDetector::use_team(parallel::ThreadTeam* team) { team_ = team; }
+
+template <class Body>
+void Ros2dDetector::for_rows(int begin, int end, Body&& body) {
+  if (end <= begin) return;
+  if (parallel::team_size(team_) <= 1) {
+    body(begin, end, 0);
+    return;
+  }
+  // Chunks of 16 rows: enough work per chunk, enough chunks to balance two to eight threads.
+  team_->for_chunks(end - begin, 16, [&](int b, int e, int thread) { body(begin + b, begin + e, thread); });
+}
+
 void Ros2dDetector::prepare_gradients(int octave, int layer) {
   const std::size_t index = static_cast<std::size_t>(octave * options_.layers + layer);
   if (gradients_ready_[index] != 0) return;
@@ -387,19 +404,21 @@ void Ros2dDetector::prepare_gradients(int octave, int layer) {
   const int h = equalized_view_.rows >> octave;
   const int R = radius_;
   // Gradients of the Gaussian-weighted mean (SIFT's blurred layer) where both neighbours exist.
-  for (int y = R + 1; y < h - R - 1; ++y) {
-    const float* up = mean.ptr<float>(y - 1);
-    const float* m = mean.ptr<float>(y);
-    const float* dn = mean.ptr<float>(y + 1);
-    float* mg = mag.ptr<float>(y);
-    float* an = ang.ptr<float>(y);
-    for (int x = R + 1; x < w - R - 1; ++x) {
-      const float dx = m[x + 1] - m[x - 1];
-      const float dy = dn[x] - up[x];
-      mg[x] = std::sqrt(dx * dx + dy * dy);
-      an[x] = static_cast<float>(orientation_bin(dx, dy));
+  for_rows(R + 1, h - R - 1, [&](int y0, int y1, int) {
+    for (int y = y0; y < y1; ++y) {
+      const float* up = mean.ptr<float>(y - 1);
+      const float* m = mean.ptr<float>(y);
+      const float* dn = mean.ptr<float>(y + 1);
+      float* mg = mag.ptr<float>(y);
+      float* an = ang.ptr<float>(y);
+      for (int x = R + 1; x < w - R - 1; ++x) {
+        const float dx = m[x + 1] - m[x - 1];
+        const float dy = dn[x] - up[x];
+        mg[x] = std::sqrt(dx * dx + dy * dy);
+        an[x] = static_cast<float>(orientation_bin(dx, dy));
+      }
     }
-  }
+  });
   gradients_ready_[index] = 1;
 }
 
