@@ -140,7 +140,7 @@ Ros2dDetector::Ros2dDetector(const Ros2dOptions& options) : options_(options) {
   }
 }
 
-void Ros2dDetector::reserve(cv::Size size, int max_keypoints) {
+void Ros2dDetector::reserve(cv::Size size) {
   const int octaves = options_.octaves;
   const int layers = options_.layers;
   equalized_.create(size, CV_8UC1);
@@ -166,7 +166,6 @@ void Ros2dDetector::reserve(cv::Size size, int max_keypoints) {
   candidates_.reserve(total);
   gradients_ready_.assign(static_cast<std::size_t>(octaves * layers), 0);
   window_points_.assign(static_cast<std::size_t>(octaves * layers), 0);
-  (void)max_keypoints;
 }
 
 bool Ros2dDetector::detect(const cv::Mat& grey, std::vector<cv::KeyPoint>& keypoints) {
@@ -177,7 +176,7 @@ bool Ros2dDetector::detect(const cv::Mat& grey, std::vector<cv::KeyPoint>& keypo
   const int margin = R + options_.border_px;  // ≥ R + 1: every candidate has its 3×3 computed
   if (grey.cols <= 2 * margin + 2 || grey.rows <= 2 * margin + 2) return false;
   if (grey.cols > equalized_.cols || grey.rows > equalized_.rows || octave_images_.empty()) {
-    reserve(cv::Size(std::max(grey.cols, equalized_.cols), std::max(grey.rows, equalized_.rows)), 0);
+    reserve(cv::Size(std::max(grey.cols, equalized_.cols), std::max(grey.rows, equalized_.rows)));
   }
   // Views of the set-up buffers at this image's size.
   cv::Mat eq = equalized_(cv::Rect(0, 0, grey.cols, grey.rows));

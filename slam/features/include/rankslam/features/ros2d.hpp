@@ -65,8 +65,8 @@ class Ros2dDetector {
 
   [[nodiscard]] const Ros2dOptions& options() const { return options_; }
 
-  /// Set-up: workspaces for images up to `size` and room for `max_keypoints` keypoints.
-  void reserve(cv::Size size, int max_keypoints);
+  /// Set-up: workspaces for images up to `size` (a larger image re-sizes them, allocating).
+  void reserve(cv::Size size);
   /// Set-up: share the row loops (the residual filters, the gradient tables) with a team; the
   /// result is the same with or without it. Null (the default) runs them on the caller.
   void use_team(parallel::ThreadTeam* team);
