@@ -191,6 +191,7 @@ void OrbExtractor::set_up(int width, int height) {
     table(level.height, above.height, level.source_y, level.weight_y);
   }
   stride_ = width;
+  level_smoothed_.assign(levels_.size(), 0);
   // Vector loads of the last row may read up to one block past it.
   const std::size_t pixels = rows * static_cast<std::size_t>(width) + kLanes;
   pyramid_.assign(pixels, 0);
@@ -446,7 +447,7 @@ void OrbExtractor::describe(const std::uint8_t* centre, float angle_rad, std::ui
   }
 }
 
-bool OrbExtractor::extract(const cv::Mat& gray) {
+bool OrbExtractor::load_image(const cv::Mat& gray) {
   keypoints_.clear();
   if (gray.empty() || gray.type() != CV_8UC1) return false;
   if (gray.cols != settings_.width || gray.rows != settings_.height) set_up(gray.cols, gray.rows);
@@ -454,6 +455,42 @@ bool OrbExtractor::extract(const cv::Mat& gray) {
   for (int y = 0; y < gray.rows; ++y) {
     std::memcpy(pyramid_.data() + static_cast<std::ptrdiff_t>(y) * stride_, gray.ptr(y), static_cast<std::size_t>(gray.cols));
   }
+  return true;
+}
+
+bool OrbExtractor::describe(const cv::Mat& gray, const std::vector<cv::KeyPoint>& detected, float base_size) {
+  if (!load_image(gray)) return false;
+  for (std::size_t l = 1; l < levels_.size(); ++l) build_level(l);
+  level_smoothed_.assign(levels_.size(), 0);  // no allocation once sized: the level count is fixed
+  const float log_factor = std::log(settings_.scale_factor);
+  const int border = settings_.border_px;
+  const auto cap = static_cast<std::size_t>(settings_.max_features);
+  for (const cv::KeyPoint& kp : detected) {
+    if (keypoints_.size() >= cap) break;
+    const float scale = std::max(kp.size / base_size, 1.0F);
+    const auto l = static_cast<std::size_t>(
+        std::clamp(static_cast<int>(std::lround(std::log(scale) / log_factor)), 0, static_cast<int>(levels_.size()) - 1));
+    const Level& level = levels_[l];
+    const int x = static_cast<int>(std::lround((kp.pt.x + 0.5F) / level.scale_x - 0.5F));
+    const int y = static_cast<int>(std::lround((kp.pt.y + 0.5F) / level.scale_y - 0.5F));
+    if (x < border || y < border || x >= level.width - border || y >= level.height - border) continue;
+    if (level_smoothed_[l] == 0) {
+      smooth(level);
+      level_smoothed_[l] = 1;
+    }
+    const std::ptrdiff_t at = static_cast<std::ptrdiff_t>(y) * stride_ + x;
+    const float angle = orientation(pyramid_.data() + level.offset + at);
+    describe(smoothed_.data() + level.offset + at, angle, descriptor_storage_.ptr(static_cast<int>(keypoints_.size())));
+    float degrees = angle * static_cast<float>(rad_to_deg(1.0));
+    if (degrees < 0.0F) degrees += 360.0F;
+    keypoints_.emplace_back(kp.pt, static_cast<float>(2 * kPatchRadius + 1) * level.scale_x, degrees, kp.response,
+                            static_cast<int>(l));
+  }
+  return true;
+}
+
+bool OrbExtractor::extract(const cv::Mat& gray) {
+  if (!load_image(gray)) return false;
   for (std::size_t l = 0; l < levels_.size(); ++l) {
     if (l > 0) build_level(l);
     const Level& level = levels_[l];

@@ -48,6 +48,18 @@ OrbFrontend::OrbFrontend(const SlamConfig& config, const camera::DepthCameraMode
       keypoint_sigma_px_(static_cast<float>(config.keypoint_sigma_px)),
       scale_factor_(static_cast<float>(config.orb_scale_factor)),
       extractor_(extractor_settings(config, camera, fast_threshold)) {
+  if (config.ros2d_keypoints != 0 && config.orb_implementation == OrbImplementation::kFixedMemory) {
+    features::Ros2dOptions options;
+    // Only the octaves the descriptor pyramid spans: a coarser feature would be described at
+    // the wrong scale.
+    const double span = std::pow(config.orb_scale_factor, config.orb_levels - 1);
+    options.octaves = std::clamp(static_cast<int>(std::floor(std::log2(span))) + 1, 1, options.octaves);
+    // Candidates beyond the budget: some fall within the descriptor patch's border and are dropped.
+    options.max_features = 2 * config.orb_features;
+    ros2d_.emplace(options);
+    ros2d_->reserve(cv::Size(camera.width(), camera.height()));
+    ros2d_keypoints_.reserve(static_cast<std::size_t>(options.max_features));
+  }
   if (config.orb_implementation == OrbImplementation::kOpenCv) {
     opencv_orb_ = cv::ORB::create(config.orb_features, static_cast<float>(config.orb_scale_factor), config.orb_levels, 31,
                                   0, 2, cv::ORB::HARRIS_SCORE, 31,
@@ -61,6 +73,12 @@ void OrbFrontend::extract(const cv::Mat& gray, const cv::Mat& depth, Photometric
   if (opencv_orb_) {
     opencv_keypoints_.clear();
     opencv_orb_->detectAndCompute(gray, cv::noArray(), opencv_keypoints_, opencv_descriptors_);
+  } else if (ros2d_) {
+    // ROS2D's scale 2σ0 (its finest keypoint size) is the pyramid's level 0.
+    if (!ros2d_->detect(gray, ros2d_keypoints_) ||
+        !extractor_.describe(gray, ros2d_keypoints_, static_cast<float>(2.0 * ros2d_->options().sigma0))) {
+      return;
+    }
   } else if (!extractor_.extract(gray)) {
     return;
   }

@@ -380,6 +380,28 @@ TEST(OrbExtractor, MatchesRealFramesAsWellAsOpenCvOrb) {
   EXPECT_GE(ours.inliers, 0.8 * opencv.inliers);
 }
 
+TEST(OrbExtractor, DescribingItsOwnKeypointsReproducesItsDescriptors) {
+  // describe() on extract()'s keypoints (size 31 px at level 0) finds their levels, orientations
+  // and descriptors again.
+  const TumFrames& frames = fr1_rpy_head();
+  if (!frames.skip_reason.empty()) GTEST_SKIP() << frames.skip_reason;
+  OrbExtractor extractor(OrbExtractorSettings{});
+  ASSERT_TRUE(extractor.extract(frames.gray[3]));
+  const std::vector<cv::KeyPoint> own = extractor.keypoints();
+  const cv::Mat descriptors = extractor.descriptors().clone();
+  ASSERT_GT(own.size(), 500U);
+  ASSERT_TRUE(extractor.describe(frames.gray[3], own, 2.0F * OrbExtractor::kPatchRadius + 1.0F));
+  ASSERT_EQ(extractor.keypoints().size(), own.size());
+  for (std::size_t i = 0; i < own.size(); ++i) {
+    const cv::KeyPoint& again = extractor.keypoints()[i];
+    EXPECT_EQ(again.octave, own[i].octave);
+    EXPECT_FLOAT_EQ(again.angle, own[i].angle);
+    EXPECT_EQ(cv::norm(extractor.descriptors().row(static_cast<int>(i)), descriptors.row(static_cast<int>(i)),
+                       cv::NORM_HAMMING),
+              0.0);
+  }
+}
+
 TEST(OrbExtractor, ExtractsRealFramesWithoutAllocating) {
   const TumFrames& frames = fr1_rpy_head();
   if (!frames.skip_reason.empty()) GTEST_SKIP() << frames.skip_reason;
@@ -417,6 +439,23 @@ TEST(OrbExtractor, ExtractsRealFramesWithoutAllocating) {
   }
   EXPECT_EQ(allocations, 0);
   EXPECT_GT(with_depth, 50U * 500U);
+
+  // With ROS2D's keypoints (docs/methods.md §15) in place of FAST's.
+  config.ros2d_keypoints = 1;
+  rankslam::slam::OrbFrontend ros2d_frontend(config, camera);
+  ros2d_frontend.extract(frames.gray[0], frames.depth[0], photometric);
+  std::size_t ros2d_with_depth = 0;
+  {
+    const rankslam::test_support::CountAllocations count;
+    for (std::size_t i = 1; i <= 50; ++i) {
+      ros2d_frontend.extract(frames.gray[i], frames.depth[i], photometric);
+      ros2d_with_depth += photometric.size();
+      EXPECT_LE(photometric.size(), static_cast<std::size_t>(config.orb_features));
+    }
+    allocations = count.allocations();
+  }
+  EXPECT_EQ(allocations, 0);
+  EXPECT_GT(ros2d_with_depth, 50U * 500U);
 }
 
 }  // namespace

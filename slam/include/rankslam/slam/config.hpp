@@ -296,6 +296,9 @@ struct SlamConfig {
   double orb_scale_factor = 1.2;
   int orb_levels = 8;
   int orb_fast_threshold = 20;
+  /// 1: the photometric features' keypoints come from ROS2D (docs/methods.md §15), the strongest
+  /// orb_features of them, described by the same steered BRIEF as ORB's own; 0: ORB's FAST corners.
+  int ros2d_keypoints = 0;
   int max_hamming_distance = 64;
   double min_depth_m = 0.3;
   double max_depth_m = 4.0;
@@ -381,6 +384,8 @@ struct SlamConfig {
     visit("orb_scale_factor", orb_scale_factor, 1.05, 2.0, "", "ORB pyramid scale between levels");
     visit("orb_levels", orb_levels, 1, 16, "", "ORB pyramid levels");
     visit("orb_fast_threshold", orb_fast_threshold, 1, 100, "", "FAST corner threshold");
+    visit("ros2d_keypoints", ros2d_keypoints, 0, 1, "",
+          "1: ROS2D keypoints (ch. 7) described by ORB's steered BRIEF instead of FAST corners");
     visit("max_hamming_distance", max_hamming_distance, 1, 256, "bit", "largest descriptor distance of a match");
     visit("min_depth_m", min_depth_m, 0.0, 10.0, "m", "nearest depth any part uses");
     visit("max_depth_m", max_depth_m, 0.1, 20.0, "m", "farthest depth any part uses (features, ICP, map)");

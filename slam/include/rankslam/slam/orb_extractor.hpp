@@ -71,6 +71,14 @@ class OrbExtractor {
   /// features, for an image of another type or too small for one patch.
   bool extract(const cv::Mat& gray);
 
+  /// Describes keypoints found by another detector (ROS2D, docs/methods.md §15) the way extract()
+  /// describes its own: each goes to the pyramid level nearest its scale (`size` / `base_size`
+  /// level-0 pixels per level pixel), gets the intensity-centroid orientation there and the
+  /// steered BRIEF descriptor; keypoints within the border of their level are dropped, and at
+  /// most max_features are kept, in the given order. `octave` becomes the level, the position and
+  /// response stay. Same size rules and return value as extract().
+  bool describe(const cv::Mat& gray, const std::vector<cv::KeyPoint>& detected, float base_size);
+
   [[nodiscard]] const std::vector<cv::KeyPoint>& keypoints() const { return keypoints_; }
   /// CV_8UC1, one kDescriptorBytes row per keypoint: a view of memory the next extract() reuses.
   [[nodiscard]] cv::Mat descriptors() const {
@@ -104,6 +112,7 @@ class OrbExtractor {
   };
 
   void set_up(int width, int height);
+  bool load_image(const cv::Mat& gray);
   void build_level(std::size_t level);
   void detect(const Level& level);
   void suppress_non_maxima();
@@ -125,6 +134,7 @@ class OrbExtractor {
   std::array<int, kPatchRadius + 1> circle_half_width_{};
   std::vector<std::int32_t> steered_offsets_;  ///< kAngleBins × kTests × 2 offsets.
   std::vector<cv::KeyPoint> keypoints_;
+  std::vector<std::uint8_t> level_smoothed_;  ///< describe(): levels smoothed for this image
   cv::Mat descriptor_storage_;
 };
 

@@ -1,6 +1,7 @@
 #pragma once
 
 #include "rankslam/camera/depth_camera.hpp"
+#include "rankslam/features/ros2d.hpp"
 #include "rankslam/slam/config.hpp"
 #include "rankslam/slam/image_source.hpp"
 #include "rankslam/slam/orb_extractor.hpp"
@@ -10,6 +11,7 @@
 #include <opencv2/features2d.hpp>
 
 #include <cstdint>
+#include <optional>
 #include <vector>
 
 namespace rankslam::slam {
@@ -66,6 +68,8 @@ class OrbFrontend {
   float keypoint_sigma_px_;
   float scale_factor_;
   OrbExtractor extractor_;
+  std::optional<features::Ros2dDetector> ros2d_;  ///< Set only when config.ros2d_keypoints is 1.
+  std::vector<cv::KeyPoint> ros2d_keypoints_;
   cv::Ptr<cv::ORB> opencv_orb_;  ///< Set only when config.orb_implementation is kOpenCv.
   std::vector<cv::KeyPoint> opencv_keypoints_;
   cv::Mat opencv_descriptors_;
