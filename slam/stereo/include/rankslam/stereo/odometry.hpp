@@ -30,8 +30,14 @@ enum class MotionModel {
 };
 
 struct StereoOdometryConfig {
-  /// Feature kind and its options; max_features is overridden by `max_features` below.
-  features::ExtractorOptions features;
+  /// Feature kind and its options; max_features is overridden by `max_features` below. ROS2D
+  /// keeps local residual peaks only: the thesis' every-point second group puts near-identical
+  /// neighbours side by side, which the ratio test then rejects as ambiguous.
+  features::ExtractorOptions features = [] {
+    features::ExtractorOptions options;
+    options.ros2d.local_peaks_only = true;
+    return options;
+  }();
   /// Most features per image (strongest first), the same cap for every kind. Range [50, 20000].
   int max_features = 2000;
   StereoMatcherConfig stereo;
