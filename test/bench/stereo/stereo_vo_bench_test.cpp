@@ -70,9 +70,11 @@ class EurocHead : public ::testing::Test {
   StereoDataset dataset_;
 };
 
-// Bounds: the head moves about 0.1 m; a trajectory that never moves scores about 0.03 m ATE.
-// Every run must track every pair, stay well below that, and the window adjustment may not
-// cost more than 2 mm of ATE against the same run without it.
+// The head's ground truth barely moves (0.9 mm RMS about its mean, 3 mm net over 3.7 s: the MAV
+// stands before take-off), so a trajectory that never moves scores 0.9 mm ATE and no odometry
+// beats it; measured 1.5–3 mm. Bounds: every pair after the first tracked, ATE below 1 cm (a
+// lost or mis-scaled frame costs more), and the window adjustment no worse than 1 mm above the
+// same run without it.
 TEST_F(EurocHead, EveryFeatureKindWithAndWithoutTheWindow) {
   for (const FeatureKind kind : {FeatureKind::ros2d, FeatureKind::sift, FeatureKind::orb}) {
     const Figures without = run(dataset_, kind, false);
@@ -80,8 +82,9 @@ TEST_F(EurocHead, EveryFeatureKindWithAndWithoutTheWindow) {
     const std::string name(rankslam::features::feature_kind_name(kind));
     EXPECT_EQ(with.tracked, with.frames - 1) << name;
     EXPECT_EQ(without.tracked, without.frames - 1) << name;
-    EXPECT_LT(with.ate_m, 0.5 * with.zero_motion_m) << name;
-    EXPECT_LT(with.ate_m, without.ate_m + 0.002) << name;
+    EXPECT_LT(with.ate_m, 0.01) << name;
+    EXPECT_LT(without.ate_m, 0.01) << name;
+    EXPECT_LT(with.ate_m, without.ate_m + 0.001) << name;
   }
 }
 
