@@ -70,7 +70,7 @@ Result<SegmentErrors> compute_segment_errors(const Trajectory& ground_truth, con
   }
   if (result.segments == 0) {
     char text[160];
-    std::snprintf(text, sizeof text, "the ground-truth path is %.1f m long, shorter than the shortest segment (%.0f m)",
+    std::snprintf(text, sizeof text, "the ground-truth path is %.3f m long, shorter than the shortest segment (%.0f m)",
                   result.path_length_m, *std::min_element(options.lengths_m.begin(), options.lengths_m.end()));
     return Result<SegmentErrors>::failure(text);
   }
