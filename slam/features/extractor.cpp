@@ -60,8 +60,8 @@ int FeatureExtractor::norm_type() const {
   return options_.kind == FeatureKind::orb ? cv::NORM_HAMMING : cv::NORM_L2;
 }
 
-void FeatureExtractor::reserve(cv::Size size, int max_keypoints) {
-  if (options_.kind == FeatureKind::ros2d) ros2d_.reserve(size, max_keypoints);
+void FeatureExtractor::reserve(cv::Size size) {
+  if (options_.kind == FeatureKind::ros2d) ros2d_.reserve(size);
   converted_.create(size, CV_8UC1);
 }
 

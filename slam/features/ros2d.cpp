@@ -79,6 +79,13 @@ void equalize(const cv::Mat& grey, cv::Mat& out) {
   }
 }
 
+// The orientation histogram bin of a gradient: its angle in degrees [0, 360) in image axes (y
+// down), as cv::KeyPoint, rounded to the nearest of kOrientationBins.
+int orientation_bin(float dx, float dy) {
+  const int bin = static_cast<int>(cv::fastAtan2(dy, dx) * (kOrientationBins / 360.0F) + 0.5F);
+  return bin >= kOrientationBins ? bin - kOrientationBins : bin;
+}
+
 // Valid interior of an octave image for a kernel of half-width r: [r, size − r).
 struct Interior {
   int x0, x1, y0, y1;
@@ -133,7 +140,7 @@ Ros2dDetector::Ros2dDetector(const Ros2dOptions& options) : options_(options) {
   }
 }
 
-void Ros2dDetector::reserve(cv::Size size, int max_keypoints) {
+void Ros2dDetector::reserve(cv::Size size) {
   const int octaves = options_.octaves;
   const int layers = options_.layers;
   equalized_.create(size, CV_8UC1);
@@ -153,12 +160,12 @@ void Ros2dDetector::reserve(cv::Size size, int max_keypoints) {
   }
   blur_a_.create(size, CV_32F);
   blur_b_.create(size, CV_32F);
-  tmp_.create(1, std::max(size.width, size.height) + 1, CV_32F);
+  tmp_.create(parallel::ThreadTeam::kMaxThreads, size.width + 1, CV_32F);  // a row per thread
   values_.resize(total);
   sort_scratch_.resize(total);
   candidates_.reserve(total);
   gradients_ready_.assign(static_cast<std::size_t>(octaves * layers), 0);
-  (void)max_keypoints;
+  window_points_.assign(static_cast<std::size_t>(octaves * layers), 0);
 }
 
 bool Ros2dDetector::detect(const cv::Mat& grey, std::vector<cv::KeyPoint>& keypoints) {
@@ -169,7 +176,7 @@ bool Ros2dDetector::detect(const cv::Mat& grey, std::vector<cv::KeyPoint>& keypo
   const int margin = R + options_.border_px;  // ≥ R + 1: every candidate has its 3×3 computed
   if (grey.cols <= 2 * margin + 2 || grey.rows <= 2 * margin + 2) return false;
   if (grey.cols > equalized_.cols || grey.rows > equalized_.rows || octave_images_.empty()) {
-    reserve(cv::Size(std::max(grey.cols, equalized_.cols), std::max(grey.rows, equalized_.rows)), 0);
+    reserve(cv::Size(std::max(grey.cols, equalized_.cols), std::max(grey.rows, equalized_.rows)));
   }
   // Views of the set-up buffers at this image's size.
   cv::Mat eq = equalized_(cv::Rect(0, 0, grey.cols, grey.rows));
@@ -219,50 +226,54 @@ bool Ros2dDetector::detect(const cv::Mat& grey, std::vector<cv::KeyPoint>& keypo
       const float* g = kernels_[static_cast<std::size_t>(l)].data() + R;  // g[-R..R]
       // r = Σ w_j (I_c − I_j)² = I_c² − 2·I_c·(G∗I) + G∗I² (Σ w_j = 1): two separable filters of
       // the interior instead of a (2R+1)² window per point.
-      for (int y = 0; y < s.height; ++y) {
-        const float* a = I.ptr<float>(y);
-        const float* b = I2.ptr<float>(y);
-        float* ha = HA.ptr<float>(y);
-        float* hb = HB.ptr<float>(y);
-        for (int x = in.x0; x < in.x1; ++x) {
-          ha[x] = g[0] * a[x];
-          hb[x] = g[0] * b[x];
-        }
-        for (int k = 1; k <= R; ++k) {
-          const float w = g[k];
+      for_rows(0, s.height, [&](int y0, int y1, int) {
+        for (int y = y0; y < y1; ++y) {
+          const float* a = I.ptr<float>(y);
+          const float* b = I2.ptr<float>(y);
+          float* ha = HA.ptr<float>(y);
+          float* hb = HB.ptr<float>(y);
           for (int x = in.x0; x < in.x1; ++x) {
-            ha[x] += w * (a[x - k] + a[x + k]);
-            hb[x] += w * (b[x - k] + b[x + k]);
+            ha[x] = g[0] * a[x];
+            hb[x] = g[0] * b[x];
+          }
+          for (int k = 1; k <= R; ++k) {
+            const float w = g[k];
+            for (int x = in.x0; x < in.x1; ++x) {
+              ha[x] += w * (a[x - k] + a[x + k]);
+              hb[x] += w * (b[x - k] + b[x + k]);
+            }
           }
         }
-      }
+      });
       cv::Mat& res = residuals_[static_cast<std::size_t>(4 * (o * layers + l))];
       cv::Mat& mean = residuals_[static_cast<std::size_t>(4 * (o * layers + l) + 1)];
-      float* acc = tmp_.ptr<float>(0);
-      for (int y = in.y0; y < in.y1; ++y) {
-        float* m = mean.ptr<float>(y);
-        const float* ha0 = HA.ptr<float>(y);
-        const float* hb0 = HB.ptr<float>(y);
-        for (int x = in.x0; x < in.x1; ++x) {
-          m[x] = g[0] * ha0[x];
-          acc[x] = g[0] * hb0[x];
-        }
-        for (int k = 1; k <= R; ++k) {
-          const float w = g[k];
-          const float* ua = HA.ptr<float>(y - k);
-          const float* da = HA.ptr<float>(y + k);
-          const float* ub = HB.ptr<float>(y - k);
-          const float* db = HB.ptr<float>(y + k);
+      for_rows(in.y0, in.y1, [&](int y0, int y1, int thread) {
+        float* acc = tmp_.ptr<float>(thread);
+        for (int y = y0; y < y1; ++y) {
+          float* m = mean.ptr<float>(y);
+          const float* ha0 = HA.ptr<float>(y);
+          const float* hb0 = HB.ptr<float>(y);
           for (int x = in.x0; x < in.x1; ++x) {
-            m[x] += w * (ua[x] + da[x]);
-            acc[x] += w * (ub[x] + db[x]);
+            m[x] = g[0] * ha0[x];
+            acc[x] = g[0] * hb0[x];
           }
+          for (int k = 1; k <= R; ++k) {
+            const float w = g[k];
+            const float* ua = HA.ptr<float>(y - k);
+            const float* da = HA.ptr<float>(y + k);
+            const float* ub = HB.ptr<float>(y - k);
+            const float* db = HB.ptr<float>(y + k);
+            for (int x = in.x0; x < in.x1; ++x) {
+              m[x] += w * (ua[x] + da[x]);
+              acc[x] += w * (ub[x] + db[x]);
+            }
+          }
+          const float* c = I.ptr<float>(y);
+          const float* c2 = I2.ptr<float>(y);
+          float* r = res.ptr<float>(y);
+          for (int x = in.x0; x < in.x1; ++x) r[x] = std::max(0.0F, c2[x] - 2.0F * c[x] * m[x] + acc[x]);
         }
-        const float* c = I.ptr<float>(y);
-        const float* c2 = I2.ptr<float>(y);
-        float* r = res.ptr<float>(y);
-        for (int x = in.x0; x < in.x1; ++x) r[x] = std::max(0.0F, c2[x] - 2.0F * c[x] * m[x] + acc[x]);
-      }
+      });
       // The residuals that compete: those at least `margin` from the border.
       for (int y = margin; y < s.height - margin; ++y) {
         const float* r = res.ptr<float>(y);
@@ -332,15 +343,32 @@ bool Ros2dDetector::detect(const cv::Mat& grey, std::vector<cv::KeyPoint>& keypo
     s = cv::Size(s.width / 2, s.height / 2);
   }
   // Strongest first; ties in a fixed order so that the output never depends on the sort.
-  std::sort(candidates_.begin(), candidates_.end(), [](const cv::KeyPoint& a, const cv::KeyPoint& b) {
+  const auto stronger = [](const cv::KeyPoint& a, const cv::KeyPoint& b) {
     if (a.response != b.response) return a.response > b.response;
     if (a.octave != b.octave) return a.octave < b.octave;
     if (a.pt.y != b.pt.y) return a.pt.y < b.pt.y;
     return a.pt.x < b.pt.x;
-  });
+  };
   const std::size_t cap = options_.max_features > 0 ? static_cast<std::size_t>(options_.max_features)
                                                      : std::numeric_limits<std::size_t>::max();
-  for (const cv::KeyPoint& c : candidates_) {
+  // Each candidate gives at least one keypoint, so only the `cap` strongest can be returned.
+  auto last = candidates_.end();
+  if (cap < candidates_.size()) {
+    last = candidates_.begin() + static_cast<std::ptrdiff_t>(cap);
+    std::nth_element(candidates_.begin(), last, candidates_.end(), stronger);
+  }
+  std::sort(candidates_.begin(), last, stronger);
+  if (options_.orientation) {
+    // A layer's gradient table pays off once its windows cover more points than the layer has.
+    std::fill(window_points_.begin(), window_points_.end(), 0);
+    for (auto it = candidates_.begin(); it != last; ++it) {
+      const int l = it->class_id;
+      const int side = 2 * orientation_radius_[static_cast<std::size_t>(l)] + 1;
+      window_points_[static_cast<std::size_t>((it->octave & 0xff) * layers + l)] += side * side;
+    }
+  }
+  for (auto it = candidates_.begin(); it != last; ++it) {
+    const cv::KeyPoint& c = *it;
     if (keypoints.size() >= cap) break;
     if (!options_.orientation) {
       keypoints.push_back(c);
@@ -350,6 +378,19 @@ bool Ros2dDetector::detect(const cv::Mat& grey, std::vector<cv::KeyPoint>& keypo
   }
   stats_.features = static_cast<int>(keypoints.size());
   return true;
+}
+
+void Ros2dDetector::use_team(parallel::ThreadTeam* team) { team_ = team; }
+
+template <class Body>
+void Ros2dDetector::for_rows(int begin, int end, Body&& body) {
+  if (end <= begin) return;
+  if (parallel::team_size(team_) <= 1) {
+    body(begin, end, 0);
+    return;
+  }
+  // Chunks of 16 rows: enough work per chunk, enough chunks to balance two to eight threads.
+  team_->for_chunks(end - begin, 16, [&](int b, int e, int thread) { body(begin + b, begin + e, thread); });
 }
 
 void Ros2dDetector::prepare_gradients(int octave, int layer) {
@@ -362,34 +403,35 @@ void Ros2dDetector::prepare_gradients(int octave, int layer) {
   const int h = equalized_view_.rows >> octave;
   const int R = radius_;
   // Gradients of the Gaussian-weighted mean (SIFT's blurred layer) where both neighbours exist.
-  for (int y = R + 1; y < h - R - 1; ++y) {
-    const float* up = mean.ptr<float>(y - 1);
-    const float* m = mean.ptr<float>(y);
-    const float* dn = mean.ptr<float>(y + 1);
-    float* mg = mag.ptr<float>(y);
-    float* an = ang.ptr<float>(y);
-    for (int x = R + 1; x < w - R - 1; ++x) {
-      const float dx = m[x + 1] - m[x - 1];
-      const float dy = dn[x] - up[x];
-      mg[x] = std::sqrt(dx * dx + dy * dy);
-      // The histogram bin of the angle in degrees [0, 360), image axes (y down), as cv::KeyPoint.
-      int bin = static_cast<int>(std::lround(cv::fastAtan2(dy, dx) * (kOrientationBins / 360.0F)));
-      if (bin >= kOrientationBins) bin -= kOrientationBins;
-      an[x] = static_cast<float>(bin);
+  for_rows(R + 1, h - R - 1, [&](int y0, int y1, int) {
+    for (int y = y0; y < y1; ++y) {
+      const float* up = mean.ptr<float>(y - 1);
+      const float* m = mean.ptr<float>(y);
+      const float* dn = mean.ptr<float>(y + 1);
+      float* mg = mag.ptr<float>(y);
+      float* an = ang.ptr<float>(y);
+      for (int x = R + 1; x < w - R - 1; ++x) {
+        const float dx = m[x + 1] - m[x - 1];
+        const float dy = dn[x] - up[x];
+        mg[x] = std::sqrt(dx * dx + dy * dy);
+        an[x] = static_cast<float>(orientation_bin(dx, dy));
+      }
     }
-  }
+  });
   gradients_ready_[index] = 1;
 }
 
 void Ros2dDetector::add_oriented(const cv::KeyPoint& c, std::vector<cv::KeyPoint>& out, std::size_t cap) {
   const int o = c.octave & 0xff;
   const int l = c.class_id;
-  prepare_gradients(o, l);
   const std::size_t index = static_cast<std::size_t>(o * options_.layers + l);
-  const cv::Mat& mag = residuals_[4 * index + 2];
-  const cv::Mat& ang = residuals_[4 * index + 3];
   const int w = equalized_view_.cols >> o;
   const int h = equalized_view_.rows >> o;
+  const bool table = window_points_[index] > static_cast<std::int64_t>(w) * h;
+  if (table) prepare_gradients(o, l);
+  const cv::Mat& mean = residuals_[4 * index + 1];
+  const cv::Mat& mag = residuals_[4 * index + 2];
+  const cv::Mat& ang = residuals_[4 * index + 3];
   const float step = static_cast<float>(1 << o);
   const int cx = static_cast<int>(std::lround((c.pt.x + 0.5F) / step - 0.5F));
   const int cy = static_cast<int>(std::lround((c.pt.y + 0.5F) / step - 0.5F));
@@ -406,8 +448,18 @@ void Ros2dDetector::add_oriented(const cv::KeyPoint& c, std::vector<cv::KeyPoint
     const float* wrow = weights + (dy + radius) * (2 * radius + 1) + radius;
     const int x0 = std::max(-radius, lo - cx);
     const int x1 = std::min(radius, w - lo - 1 - cx);
+    if (table) {
+      for (int dx = x0; dx <= x1; ++dx) hist[static_cast<int>(an[cx + dx])] += wrow[dx] * mg[cx + dx];
+      continue;
+    }
+    const float* up = mean.ptr<float>(y - 1);
+    const float* m = mean.ptr<float>(y);
+    const float* dn = mean.ptr<float>(y + 1);
     for (int dx = x0; dx <= x1; ++dx) {
-      hist[static_cast<int>(an[cx + dx])] += wrow[dx] * mg[cx + dx];
+      const int x = cx + dx;
+      const float gx = m[x + 1] - m[x - 1];
+      const float gy = dn[x] - up[x];
+      hist[orientation_bin(gx, gy)] += wrow[dx] * std::sqrt(gx * gx + gy * gy);
     }
   }
   // SIFT's [1 4 6 4 1]/16 smoothing of the circular histogram.

@@ -44,7 +44,7 @@ StereoOdometry::StereoOdometry(const RectifiedRig& rig, const StereoOdometryConf
       // A landmark lives while it is tracked; the table turns over after this many new ones.
       landmarks_((config.window_size + 2) * config.max_features * 2) {
   const auto n = static_cast<std::size_t>(config.max_features);
-  extractor_.reserve(rig.size, config.max_features);
+  extractor_.reserve(rig.size);
   stereo_matcher_.reserve(config.max_features);
   for (FrameFeatures* f : {&previous_, &current_}) {
     f->keypoints.reserve(n);

@@ -25,7 +25,7 @@ TEST(Ros2dAllocations, DetectAllocatesNothingOnceReserved) {
   Ros2dOptions options;
   options.max_features = 2000;
   Ros2dDetector detector(options);
-  detector.reserve(img.size(), options.max_features);
+  detector.reserve(img.size());
   std::vector<cv::KeyPoint> kps;
   kps.reserve(static_cast<std::size_t>(options.max_features));
   ASSERT_TRUE(detector.detect(img, kps));  // fills the lazy tables once

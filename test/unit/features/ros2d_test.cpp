@@ -176,6 +176,26 @@ TEST(Ros2d, QuarterTurnTurnsPositionsAndOrientations) {
   EXPECT_GT(angle_ok, static_cast<int>(0.9 * static_cast<double>(a.size())));
 }
 
+TEST(Ros2d, ATeamFindsTheSameFeatures) {
+  const cv::Mat img = textured(203, 151, 5);  // odd sides: uneven row chunks
+  parallel::ThreadTeam team;
+  ASSERT_EQ(team.start(2), "");
+  Ros2dDetector alone;
+  Ros2dDetector shared;
+  shared.use_team(&team);
+  std::vector<cv::KeyPoint> a;
+  std::vector<cv::KeyPoint> b;
+  ASSERT_TRUE(alone.detect(img, a));
+  ASSERT_TRUE(shared.detect(img, b));
+  ASSERT_EQ(a.size(), b.size());
+  ASSERT_GT(a.size(), 100U);
+  for (std::size_t i = 0; i < a.size(); ++i) {
+    EXPECT_EQ(a[i].pt, b[i].pt);
+    EXPECT_EQ(a[i].angle, b[i].angle);
+    EXPECT_EQ(a[i].response, b[i].response);
+  }
+}
+
 TEST(Ros2d, RefusesWhatItCannotRead) {
   Ros2dDetector detector;
   std::vector<cv::KeyPoint> kps{cv::KeyPoint(1, 1, 1)};

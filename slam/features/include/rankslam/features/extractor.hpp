@@ -42,7 +42,9 @@ class FeatureExtractor {
   [[nodiscard]] int norm_type() const;
 
   /// Set-up: sizes ROS2D's workspaces (no-op for the OpenCV detectors).
-  void reserve(cv::Size size, int max_keypoints);
+  void reserve(cv::Size size);
+  /// Set-up: ROS2D shares its row loops with `team` (OpenCV's detectors use OpenCV's own pool).
+  void use_team(parallel::ThreadTeam* team) { ros2d_.use_team(team); }
 
   /// `image`: CV_8UC1 or CV_8UC3 (BGR). Keypoints as cv::KeyPoint in full-resolution pixels. False
   /// (both outputs empty) for an empty image or another type.

@@ -4,6 +4,8 @@
 // docs/methods.md §15): a Gaussian-weighted intensity residual over a SIFT-like scale space,
 // segmented by MSSE; the second (high-residual) group are the features.
 
+#include "rankslam/parallel/thread_team.hpp"
+
 #include <opencv2/core/mat.hpp>
 #include <opencv2/core/types.hpp>
 
@@ -63,8 +65,11 @@ class Ros2dDetector {
 
   [[nodiscard]] const Ros2dOptions& options() const { return options_; }
 
-  /// Set-up: workspaces for images up to `size` and room for `max_keypoints` keypoints.
-  void reserve(cv::Size size, int max_keypoints);
+  /// Set-up: workspaces for images up to `size` (a larger image re-sizes them, allocating).
+  void reserve(cv::Size size);
+  /// Set-up: share the row loops (the residual filters, the gradient tables) with a team; the
+  /// result is the same with or without it. Null (the default) runs them on the caller.
+  void use_team(parallel::ThreadTeam* team);
 
   /// Features of an 8-bit grey image (CV_8UC1), strongest residual first. cv::KeyPoint: pt in
   /// full-resolution pixels, size = 2·σ_layer·2^octave (SIFT's convention, so that OpenCV's SIFT
@@ -82,10 +87,13 @@ class Ros2dDetector {
   [[nodiscard]] int kernel_radius() const { return radius_; }
 
  private:
+  template <class Body>
+  void for_rows(int begin, int end, Body&& body);
   void prepare_gradients(int octave, int layer);
   void add_oriented(const cv::KeyPoint& candidate, std::vector<cv::KeyPoint>& out, std::size_t cap);
 
   Ros2dOptions options_;
+  parallel::ThreadTeam* team_ = nullptr;
   int radius_ = 0;
   std::vector<std::vector<float>> kernels_;  // per layer: 2·radius + 1 taps summing to 1
   std::vector<std::vector<float>> orientation_weights_;  // per layer: the orientation window
@@ -95,6 +103,7 @@ class Ros2dDetector {
   std::vector<cv::Mat> octave_images_;       // CV_32F, per octave: I and I²
   std::vector<cv::Mat> residuals_;           // CV_32F, per octave × layer: residual, mean, |∇|, bin
   std::vector<std::uint8_t> gradients_ready_;
+  std::vector<std::int64_t> window_points_;  // per layer: orientation window points to visit
   cv::Mat blur_a_, blur_b_, tmp_;            // per-octave scratch
   std::vector<float> values_;                // all residuals, for the sort
   std::vector<float> sort_scratch_;
