@@ -48,6 +48,15 @@ struct EvalArgs {
   double delta_s = 1.0;
 };
 
+struct StereoVoArgs {
+  std::filesystem::path dataset;       ///< EuRoC ASL or KITTI odometry sequence directory
+  std::filesystem::path out;
+  std::string features = "ros2d";      ///< ros2d, sift or orb
+  bool no_ba = false;                  ///< frame-to-frame only, no window bundle adjustment
+  int max_frames = 0;                  ///< 0 = all pairs
+  std::filesystem::path ground_truth;  ///< overrides the dataset's own (TUM, or KITTI poses)
+};
+
 struct RunArgs {
   std::filesystem::path config;
   std::filesystem::path out;
@@ -84,6 +93,7 @@ struct VocabularyArgs {
 [[nodiscard]] int run_simulate(const SimulateArgs& args);
 [[nodiscard]] int run_eval(const EvalArgs& args);
 [[nodiscard]] int run_live(const RunArgs& args);
+[[nodiscard]] int run_stereo_vo(const StereoVoArgs& args);
 
 /// The registration `rankslam replay` and `run` use without --mode: fused, the one that holds
 /// where either kind of feature alone gets lost (docs/results.md §1).

@@ -77,6 +77,15 @@ int main(int argc, char** argv) {
   eval_cmd->add_option("--max-difference", eval.max_difference_s, "Largest stamp difference of associated poses, s")->check(CLI::PositiveNumber);
   eval_cmd->add_option("--delta", eval.delta_s, "RPE interval, s")->check(CLI::PositiveNumber);
 
+  StereoVoArgs stereo;
+  auto* stereo_cmd = app.add_subcommand("stereo-vo", "Stereo visual odometry over a EuRoC (ASL) or KITTI odometry sequence: trajectory, report and plot");
+  stereo_cmd->add_option("dataset", stereo.dataset, "Sequence directory: EuRoC (DIR/mav0/cam0, cam1) or KITTI (DIR/image_0, image_1, calib.txt, times.txt)")->required();
+  stereo_cmd->add_option("--out,-o", stereo.out, "Output directory")->required();
+  stereo_cmd->add_option("--features", stereo.features, "Features: ros2d (default), sift or orb")->check(CLI::IsMember({"ros2d", "sift", "orb"}));
+  stereo_cmd->add_flag("--no-ba", stereo.no_ba, "Frame-to-frame odometry only, without the sliding-window bundle adjustment");
+  stereo_cmd->add_option("--max-frames", stereo.max_frames, "Process at most this many stereo pairs (0 = all)")->check(CLI::NonNegativeNumber);
+  stereo_cmd->add_option("--ground-truth", stereo.ground_truth, "Ground truth of the left camera (TUM format, or KITTI poses), instead of the dataset's own");
+
   RunArgs run;
   auto* run_cmd = app.add_subcommand("run", "Run live on the robot: sensors in, pose out over CAN");
   run_cmd->add_option("--config,-c", run.config, "Robot configuration (deploy/config/<robot>.yaml)")->required();
@@ -120,6 +129,7 @@ int main(int argc, char** argv) {
     if (vocabulary_cmd->parsed()) return run_vocabulary(vocabulary);
     if (eval_cmd->parsed()) return run_eval(eval);
     if (run_cmd->parsed()) return run_live(run);
+    if (stereo_cmd->parsed()) return run_stereo_vo(stereo);
     if (record_cmd->parsed()) return run_record(record);
   } catch (const std::exception& error) {
     std::cerr << "internal error: " << error.what() << "\n";
