@@ -18,7 +18,7 @@ namespace rankslam::feature_eval {
 
 namespace {
 
-constexpr int kPolygonVertices = 64;
+constexpr int kPolygonVertices = 32;
 using Polygon = std::vector<cv::Point2d>;
 
 /// Jacobian of x ↦ H·x (dehomogenised) at `p`.
@@ -63,19 +63,19 @@ double polygon_area(const Polygon& p) {
   return 0.5 * std::abs(sum);
 }
 
-/// Sutherland–Hodgman: `subject` clipped by the convex, counter-clockwise `clip`.
-Polygon clip_convex(const Polygon& subject, const Polygon& clip) {
-  Polygon out = subject;
-  Polygon in;
+/// Sutherland–Hodgman: `subject` clipped by the convex, counter-clockwise `clip`, into `out`
+/// (`scratch` reused: this runs for every candidate pair of dense detectors).
+void clip_convex(const Polygon& subject, const Polygon& clip, Polygon& out, Polygon& scratch) {
+  out = subject;
   for (std::size_t e = 0; e < clip.size() && !out.empty(); ++e) {
     const cv::Point2d a = clip[e];
     const cv::Point2d b = clip[(e + 1) % clip.size()];
     const auto side = [&](cv::Point2d p) { return (b.x - a.x) * (p.y - a.y) - (b.y - a.y) * (p.x - a.x); };
-    in.swap(out);
+    scratch.swap(out);
     out.clear();
-    for (std::size_t i = 0; i < in.size(); ++i) {
-      const cv::Point2d p = in[i];
-      const cv::Point2d q = in[(i + 1) % in.size()];
+    for (std::size_t i = 0; i < scratch.size(); ++i) {
+      const cv::Point2d p = scratch[i];
+      const cv::Point2d q = scratch[(i + 1) % scratch.size()];
       const double sp = side(p);
       const double sq = side(q);
       if (sp >= 0.0) out.push_back(p);
@@ -85,7 +85,6 @@ Polygon clip_convex(const Polygon& subject, const Polygon& clip) {
       }
     }
   }
-  return out;
 }
 
 /// Area of the intersection of two discs of radii r1, r2 whose centres are d apart.
@@ -160,7 +159,9 @@ double ellipse_overlap_error(cv::Point2d c1, const cv::Matx22d& q1, cv::Point2d 
   const Polygon p2 = ellipse_polygon(c2, q2);
   const double a1 = polygon_area(p1);
   const double a2 = polygon_area(p2);
-  const Polygon both = clip_convex(p1, p2);
+  thread_local Polygon both;
+  thread_local Polygon scratch;
+  clip_convex(p1, p2, both, scratch);
   const double inter = both.size() >= 3 ? polygon_area(both) : 0.0;
   return 1.0 - inter / (a1 + a2 - inter);
 }
@@ -193,34 +194,44 @@ RepeatabilityResult repeatability(const std::vector<cv::KeyPoint>& kp1, cv::Size
   result.count2 = static_cast<int>(r2.size());
   if (r1.empty() || r2.empty()) return result;
 
-  // The largest centre distance a pair can have and still overlap; it sizes the search grid.
-  double r2_axis = 0.0;
-  double r2_ecc = 1.0;
-  for (const Region& b : r2) {
-    r2_axis = std::max(r2_axis, b.a_max);
-    r2_ecc = std::max(r2_ecc, b.a_max / b.a_min);
+  // Necessary conditions for an overlap error below e (keep = 1 − e): the areas within a factor
+  // 1/keep, so r1² ∈ [keep, 1/keep]·(b's semi-axes' product); and the circumscribed circles'
+  // lens at least keep·(the larger area). They bound, per region of image 2, the centre
+  // distance (`reach`) and the radius of the region-1 candidates.
+  const double keep = 1.0 - options.max_overlap_error;
+  const double big_r = options.normalised_radius;
+  const auto largest_distance = [](double ra, double rb, double needed) {
+    double lo = 0.0;
+    double hi = ra + rb;
+    if (lens_area(ra, rb, 0.0) < needed) return 0.0;
+    for (int it = 0; it < 40; ++it) {
+      const double mid = 0.5 * (lo + hi);
+      (lens_area(ra, rb, mid) >= needed ? lo : hi) = mid;
+    }
+    return hi;
+  };
+  std::vector<double> reach(r2.size());
+  double mean_reach = 0.0;
+  for (std::size_t j = 0; j < r2.size(); ++j) {
+    const Region& b = r2[j];
+    const double g = b.a_max * b.a_min;
+    if (normalised) {
+      reach[j] = largest_distance(big_r, big_r * std::sqrt(b.a_max / b.a_min / keep), keep * std::numbers::pi * big_r * big_r);
+    } else {
+      reach[j] = largest_distance(std::sqrt(g / keep), b.a_max, keep * b.area);
+    }
+    mean_reach += reach[j];
   }
-  double reach = 0.0;
-  if (normalised) {
-    // Region 1 has radius R; an area ratio ≤ 1/(1 − e) bounds region 2's longer axis.
-    const double area_ratio = 1.0 / (1.0 - options.max_overlap_error);
-    reach = options.normalised_radius * (1.0 + std::sqrt(area_ratio * r2_ecc));
-  } else {
-    double r1_axis = 0.0;
-    for (const Region& a : r1) r1_axis = std::max(r1_axis, a.a_max);
-    reach = r1_axis + r2_axis;
-  }
-  const double cell = std::max(reach, 1.0);
+  mean_reach /= static_cast<double>(r2.size());
+  const double cell = std::clamp(mean_reach, 2.0, 64.0);
   const int gw = static_cast<int>(std::ceil((size1.width + 1) / cell)) + 1;
   const int gh = static_cast<int>(std::ceil((size1.height + 1) / cell)) + 1;
   std::vector<std::vector<int>> grid(static_cast<std::size_t>(gw) * static_cast<std::size_t>(gh));
-  const auto cell_of = [&](cv::Point2d p) {
-    return cv::Point(std::clamp(static_cast<int>((p.x + 0.5) / cell), 0, gw - 1),
-                     std::clamp(static_cast<int>((p.y + 0.5) / cell), 0, gh - 1));
-  };
+  const auto cell_index = [&](double v, int n) { return std::clamp(static_cast<int>((v + 0.5) / cell), 0, n - 1); };
   for (std::size_t i = 0; i < r1.size(); ++i) {
-    const cv::Point g = cell_of(r1[i].c);
-    grid[static_cast<std::size_t>(g.y * gw + g.x)].push_back(static_cast<int>(i));
+    const int gx = cell_index(r1[i].c.x, gw);
+    const int gy = cell_index(r1[i].c.y, gh);
+    grid[static_cast<std::size_t>(gy * gw + gx)].push_back(static_cast<int>(i));
   }
 
   struct Candidate {
@@ -230,21 +241,33 @@ RepeatabilityResult repeatability(const std::vector<cv::KeyPoint>& kp1, cv::Size
   };
   std::vector<Candidate> candidates;
   for (std::size_t j = 0; j < r2.size(); ++j) {
-    const cv::Point g = cell_of(r2[j].c);
-    for (int gy = std::max(g.y - 1, 0); gy <= std::min(g.y + 1, gh - 1); ++gy) {
-      for (int gx = std::max(g.x - 1, 0); gx <= std::min(g.x + 1, gw - 1); ++gx) {
+    const Region& b0 = r2[j];
+    const double g = b0.a_max * b0.a_min;
+    const double reach2 = reach[j] * reach[j];
+    for (int gy = cell_index(b0.c.y - reach[j], gh); gy <= cell_index(b0.c.y + reach[j], gh); ++gy) {
+      for (int gx = cell_index(b0.c.x - reach[j], gw); gx <= cell_index(b0.c.x + reach[j], gw); ++gx) {
         for (int i : grid[static_cast<std::size_t>(gy * gw + gx)]) {
-          const Region& a = r1[static_cast<std::size_t>(i)];
-          Region b = r2[j];
-          Region an = a;
+          const Region& a0 = r1[static_cast<std::size_t>(i)];
+          const double dx = a0.c.x - b0.c.x;
+          const double dy = a0.c.y - b0.c.y;
+          if (dx * dx + dy * dy > reach2) continue;
+          const double r1sq = a0.a_max * a0.a_max;
+          if (r1sq < keep * g || r1sq * keep > g) continue;
+          Region a = a0;
+          Region b = b0;
           if (normalised) {
             // The protocol's normalisation: shapes scaled so region 1 has radius R, centres kept.
-            const double f = options.normalised_radius / a.a_max;
-            an = make_region(a.c, a.q * (1.0 / (f * f)), a.index);
-            b = make_region(b.c, b.q * (1.0 / (f * f)), b.index);
+            const double f = big_r / a0.a_max;
+            a.q = cv::Matx22d::eye() * (1.0 / (big_r * big_r));
+            a.a_max = a.a_min = big_r;
+            a.area = std::numbers::pi * big_r * big_r;
+            b.q = b0.q * (1.0 / (f * f));
+            b.a_max = b0.a_max * f;
+            b.a_min = b0.a_min * f;
+            b.area = b0.area * f * f;
           }
-          if (!may_overlap(an, b, options.max_overlap_error)) continue;
-          const double e = overlap_error(an, b);
+          if (!may_overlap(a, b, options.max_overlap_error)) continue;
+          const double e = overlap_error(a, b);
           if (e < options.max_overlap_error) candidates.push_back({e, i, static_cast<int>(j)});
         }
       }
@@ -389,11 +412,13 @@ Transformed brightness(const cv::Mat& image, double factor) {
 
 std::vector<Transformed> standard_transformations(const cv::Mat& image) {
   std::vector<Transformed> out;
-  for (double deg : {15.0, 30.0, 45.0, 90.0, 180.0}) out.push_back(rotate(image, deg));
-  for (double s : {0.5, 0.75, 1.5, 2.0}) out.push_back(scale(image, s));
-  for (double sigma : {1.0, 2.0, 4.0}) out.push_back(blur(image, sigma));
-  for (int q : {50, 20, 5}) out.push_back(jpeg(image, q));
-  for (double f : {0.4, 0.7, 1.6}) out.push_back(brightness(image, f));
+  // Two levels per family at most (rotation three): ROS2D's 10⁵ features per image make a row
+  // cost about half a minute.
+  for (double deg : {30.0, 90.0, 180.0}) out.push_back(rotate(image, deg));
+  for (double s : {0.5, 2.0}) out.push_back(scale(image, s));
+  out.push_back(blur(image, 2.0));
+  out.push_back(jpeg(image, 20));
+  for (double f : {0.5, 1.6}) out.push_back(brightness(image, f));
   return out;
 }
 

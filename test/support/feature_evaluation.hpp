@@ -51,7 +51,7 @@ struct RepeatabilityResult {
                                                 const RepeatabilityOptions& options = {});
 
 /// Overlap error 1 − |A∩B|/|A∪B| of two ellipses {x : (x−c)ᵀ·Q·(x−c) ≤ 1} (Q symmetric positive
-/// definite), exact to the area of 64-gons (relative error below 0.2 %).
+/// definite), exact to the area of inscribed 32-gons (each 0.6 % short of its ellipse).
 [[nodiscard]] double ellipse_overlap_error(cv::Point2d c1, const cv::Matx22d& q1, cv::Point2d c2,
                                            const cv::Matx22d& q2);
 
@@ -97,8 +97,8 @@ struct Transformed {
 /// Intensities multiplied by `factor`, saturated to [0, 255]; identity homography.
 [[nodiscard]] Transformed brightness(const cv::Mat& image, double factor);
 
-/// The families the evaluation reports: rotation 15–180°, scale 0.5–2, blur σ 1–4, JPEG
-/// quality 50–5, brightness ×0.4–1.6.
+/// The rows the evaluation reports: rotation 30°, 90°, 180°; scale 0.5, 2; blur σ 2; JPEG
+/// quality 20; brightness ×0.5, ×1.6.
 [[nodiscard]] std::vector<Transformed> standard_transformations(const cv::Mat& image);
 
 /// One detector + descriptor under evaluation. extract(grey CV_8UC1) fills keypoints and
