@@ -239,8 +239,14 @@ RepeatabilityResult repeatability(const std::vector<cv::KeyPoint>& kp1, cv::Size
     int a;
     int b;
   };
+  // Each region of image 2 keeps its kBest lowest errors: dense detectors give hundreds of
+  // candidates per region, and sorting them all dominated the time. The greedy assignment can
+  // then only miss a pair whose region 2 lost all its kBest partners first (an undercount).
+  constexpr std::size_t kBest = 8;
   std::vector<Candidate> candidates;
+  std::vector<Candidate> best;
   for (std::size_t j = 0; j < r2.size(); ++j) {
+    best.clear();
     const Region& b0 = r2[j];
     const double g = b0.a_max * b0.a_min;
     const double reach2 = reach[j] * reach[j];
@@ -268,10 +274,19 @@ RepeatabilityResult repeatability(const std::vector<cv::KeyPoint>& kp1, cv::Size
           }
           if (!may_overlap(a, b, options.max_overlap_error)) continue;
           const double e = overlap_error(a, b);
-          if (e < options.max_overlap_error) candidates.push_back({e, i, static_cast<int>(j)});
+          if (e >= options.max_overlap_error) continue;
+          if (best.size() == kBest) {
+            auto worst = std::max_element(best.begin(), best.end(),
+                                          [](const Candidate& x, const Candidate& y) { return x.error < y.error; });
+            if (worst->error <= e) continue;
+            *worst = {e, i, static_cast<int>(j)};
+          } else {
+            best.push_back({e, i, static_cast<int>(j)});
+          }
         }
       }
     }
+    candidates.insert(candidates.end(), best.begin(), best.end());
   }
   std::sort(candidates.begin(), candidates.end(), [](const Candidate& x, const Candidate& y) {
     return x.error != y.error ? x.error < y.error : (x.a != y.a ? x.a < y.a : x.b < y.b);
@@ -455,7 +470,8 @@ std::vector<Peer> make_peers(int orb_features) {
   return peers;
 }
 
-PairScore evaluate_pair(Peer& peer, const cv::Mat& grey1, const cv::Mat& grey2, const cv::Matx33d& h1to2) {
+PairScore evaluate_pair(Peer& peer, const cv::Mat& grey1, const cv::Mat& grey2, const cv::Matx33d& h1to2,
+                        bool matching) {
   PairScore s;
   std::vector<cv::KeyPoint> k1;
   std::vector<cv::KeyPoint> k2;
@@ -463,8 +479,13 @@ PairScore evaluate_pair(Peer& peer, const cv::Mat& grey1, const cv::Mat& grey2, 
   cv::Mat d2;
   using clock = std::chrono::steady_clock;
   const auto t0 = clock::now();
-  peer.extract(grey1, k1, d1);
-  peer.extract(grey2, k2, d2);
+  if (matching) {
+    peer.extract(grey1, k1, d1);
+    peer.extract(grey2, k2, d2);
+  } else {
+    peer.detect(grey1, k1);
+    peer.detect(grey2, k2);
+  }
   const auto t2 = clock::now();
   s.extract_ms = 0.5 * std::chrono::duration<double, std::milli>(t2 - t0).count();
   s.count = static_cast<int>((k1.size() + k2.size()) / 2);
@@ -472,7 +493,7 @@ PairScore evaluate_pair(Peer& peer, const cv::Mat& grey1, const cv::Mat& grey2, 
   RepeatabilityOptions plain;
   plain.mode = OverlapMode::plain;
   s.rep_plain = repeatability(k1, grey1.size(), k2, grey2.size(), h1to2, plain);
-  s.matching = match_inliers(k1, d1, grey1.size(), k2, d2, grey2.size(), h1to2, peer.norm_type);
+  if (matching) s.matching = match_inliers(k1, d1, grey1.size(), k2, d2, grey2.size(), h1to2, peer.norm_type);
   return s;
 }
 

@@ -124,9 +124,10 @@ struct PairScore {
   double extract_ms = 0.0;  ///< mean wall time of one image's extraction
 };
 
-/// Extracts `peer`'s features from both images (grey) and scores them under `h1to2`.
+/// Extracts `peer`'s features from both images (grey) and scores them under `h1to2`; without
+/// `matching` the descriptors are neither computed nor matched (its result stays zero).
 [[nodiscard]] PairScore evaluate_pair(Peer& peer, const cv::Mat& grey1, const cv::Mat& grey2,
-                                      const cv::Matx33d& h1to2);
+                                      const cv::Matx33d& h1to2, bool matching = true);
 
 /// Reads a 3×3 homography written as nine whitespace-separated numbers (Oxford's H1to3p).
 /// False when the file cannot be read or holds fewer numbers.
