@@ -235,18 +235,12 @@ RepeatabilityResult repeatability(const std::vector<cv::KeyPoint>& kp1, cv::Size
   }
 
   struct Candidate {
-    double error;
+    float error;  // float: dense detectors give 10⁷ candidates, all sorted
     int a;
     int b;
   };
-  // Each region of image 2 keeps its kBest lowest errors: dense detectors give hundreds of
-  // candidates per region, and sorting them all dominated the time. The greedy assignment can
-  // then only miss a pair whose region 2 lost all its kBest partners first (an undercount).
-  constexpr std::size_t kBest = 8;
   std::vector<Candidate> candidates;
-  std::vector<Candidate> best;
   for (std::size_t j = 0; j < r2.size(); ++j) {
-    best.clear();
     const Region& b0 = r2[j];
     const double g = b0.a_max * b0.a_min;
     const double reach2 = reach[j] * reach[j];
@@ -274,19 +268,10 @@ RepeatabilityResult repeatability(const std::vector<cv::KeyPoint>& kp1, cv::Size
           }
           if (!may_overlap(a, b, options.max_overlap_error)) continue;
           const double e = overlap_error(a, b);
-          if (e >= options.max_overlap_error) continue;
-          if (best.size() == kBest) {
-            auto worst = std::max_element(best.begin(), best.end(),
-                                          [](const Candidate& x, const Candidate& y) { return x.error < y.error; });
-            if (worst->error <= e) continue;
-            *worst = {e, i, static_cast<int>(j)};
-          } else {
-            best.push_back({e, i, static_cast<int>(j)});
-          }
+          if (e < options.max_overlap_error) candidates.push_back({static_cast<float>(e), i, static_cast<int>(j)});
         }
       }
     }
-    candidates.insert(candidates.end(), best.begin(), best.end());
   }
   std::sort(candidates.begin(), candidates.end(), [](const Candidate& x, const Candidate& y) {
     return x.error != y.error ? x.error < y.error : (x.a != y.a ? x.a < y.a : x.b < y.b);
