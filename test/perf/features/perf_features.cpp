@@ -71,7 +71,7 @@ void ros2d(benchmark::State& state, bool describe, bool capped) {
   FeatureExtractor extractor(options);
   std::vector<cv::KeyPoint> k;
   cv::Mat d;
-  if (!frame().empty()) extractor.reserve(frame().size(), 300000);
+  if (!frame().empty()) extractor.reserve(frame().size());
   time_it(state, [&] {
     if (describe) {
       extractor.extract(frame(), k, d);
