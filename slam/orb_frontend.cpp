@@ -56,6 +56,8 @@ OrbFrontend::OrbFrontend(const SlamConfig& config, const camera::DepthCameraMode
     options.octaves = std::clamp(static_cast<int>(std::floor(std::log2(span))) + 1, 1, options.octaves);
     // Candidates beyond the budget: some fall within the descriptor patch's border and are dropped.
     options.max_features = 2 * config.orb_features;
+    // One keypoint per residual peak: the whole second group runs along edges, pixel beside pixel.
+    options.local_peaks_only = true;
     ros2d_.emplace(options);
     ros2d_->reserve(cv::Size(camera.width(), camera.height()));
     ros2d_keypoints_.reserve(static_cast<std::size_t>(options.max_features));
