@@ -296,8 +296,9 @@ struct SlamConfig {
   double orb_scale_factor = 1.2;
   int orb_levels = 8;
   int orb_fast_threshold = 20;
-  /// 1: the photometric features' keypoints come from ROS2D (docs/methods.md §15), the strongest
-  /// orb_features of them, described by the same steered BRIEF as ORB's own; 0: ORB's FAST corners.
+  /// 1: the photometric features' keypoints are ROS2D's residual peaks (docs/methods.md §15), the
+  /// strongest orb_features of them, described by the same steered BRIEF as ORB's own; 0: ORB's
+  /// FAST corners. Off: better only on plain walls in photometric mode (docs/results.md §13).
   int ros2d_keypoints = 0;
   int max_hamming_distance = 64;
   double min_depth_m = 0.3;
