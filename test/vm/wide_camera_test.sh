@@ -54,6 +54,9 @@ output:
 YAML
 "$rankslam" run --config "\$dir/robot.yaml" --mode baseline --out "\$dir/out" > "\$out/run.log" 2>&1 &
 run=\$!
+# The run's seconds count from its first status line: start-up under emulation varies by seconds.
+i=0
+while [ \$i -lt 90 ] && ! grep -q '^status:' "\$out/run.log"; do sleep 1; i=\$((i + 1)); done
 sleep $run_s
 kill -TERM \$run
 wait \$run
