@@ -447,6 +447,17 @@ void OrbExtractor::describe(const std::uint8_t* centre, float angle_rad, std::ui
   }
 }
 
+void OrbExtractor::add_keypoint(std::size_t l, int x, int y, cv::Point2f pt, float response) {
+  const Level& level = levels_[l];
+  const std::ptrdiff_t at = static_cast<std::ptrdiff_t>(level.offset) + static_cast<std::ptrdiff_t>(y) * stride_ + x;
+  const float angle = orientation(pyramid_.data() + at);
+  describe(smoothed_.data() + at, angle, descriptor_storage_.ptr(static_cast<int>(keypoints_.size())));
+  float degrees = angle * static_cast<float>(rad_to_deg(1.0));
+  if (degrees < 0.0F) degrees += 360.0F;
+  keypoints_.emplace_back(pt, static_cast<float>(2 * kPatchRadius + 1) * level.scale_x, degrees, response,
+                          static_cast<int>(l));
+}
+
 bool OrbExtractor::load_image(const cv::Mat& gray) {
   keypoints_.clear();
   if (gray.empty() || gray.type() != CV_8UC1) return false;
@@ -478,13 +489,7 @@ bool OrbExtractor::describe(const cv::Mat& gray, const std::vector<cv::KeyPoint>
       smooth(level);
       level_smoothed_[l] = 1;
     }
-    const std::ptrdiff_t at = static_cast<std::ptrdiff_t>(y) * stride_ + x;
-    const float angle = orientation(pyramid_.data() + level.offset + at);
-    describe(smoothed_.data() + level.offset + at, angle, descriptor_storage_.ptr(static_cast<int>(keypoints_.size())));
-    float degrees = angle * static_cast<float>(rad_to_deg(1.0));
-    if (degrees < 0.0F) degrees += 360.0F;
-    keypoints_.emplace_back(kp.pt, static_cast<float>(2 * kPatchRadius + 1) * level.scale_x, degrees, kp.response,
-                            static_cast<int>(l));
+    add_keypoint(l, x, y, kp.pt, kp.response);
   }
   return true;
 }
@@ -516,17 +521,11 @@ bool OrbExtractor::extract(const cv::Mat& gray) {
     }
     if (begin == end) continue;
     smooth(level);
-    const std::uint8_t* smoothed = smoothed_.data() + level.offset;
     for (auto it = begin; it != end; ++it) {
-      const std::ptrdiff_t at = static_cast<std::ptrdiff_t>(it->y) * stride_ + it->x;
-      const float angle = orientation(image + at);
-      describe(smoothed + at, angle, descriptor_storage_.ptr(static_cast<int>(keypoints_.size())));
-      float degrees = angle * static_cast<float>(rad_to_deg(1.0));
-      if (degrees < 0.0F) degrees += 360.0F;
-      keypoints_.emplace_back(cv::Point2f((static_cast<float>(it->x) + 0.5F) * level.scale_x - 0.5F,
-                                          (static_cast<float>(it->y) + 0.5F) * level.scale_y - 0.5F),
-                              static_cast<float>(2 * kPatchRadius + 1) * level.scale_x, degrees, it->score,
-                              static_cast<int>(l));
+      add_keypoint(l, it->x, it->y,
+                   cv::Point2f((static_cast<float>(it->x) + 0.5F) * level.scale_x - 0.5F,
+                               (static_cast<float>(it->y) + 0.5F) * level.scale_y - 0.5F),
+                   it->score);
     }
   }
   return true;

@@ -114,6 +114,9 @@ class OrbExtractor {
   void set_up(int width, int height);
   bool load_image(const cv::Mat& gray);
   void build_level(std::size_t level);
+  /// Orientation and steered BRIEF of level `l`'s pixel (x, y) (its level smoothed), appended as
+  /// a keypoint at `pt` in level-0 pixels.
+  void add_keypoint(std::size_t l, int x, int y, cv::Point2f pt, float response);
   void detect(const Level& level);
   void suppress_non_maxima();
   float harris(const std::uint8_t* centre) const;
