@@ -7,17 +7,12 @@
 #include <opencv2/imgcodecs.hpp>
 
 #include "rankslam/eval/json_writer.hpp"
+#include "rankslam/eval/metrics.hpp"
 
 namespace rankslam::stereo {
 namespace {
 
-double median(std::vector<double> values) {
-  if (values.empty()) return 0.0;
-  const auto mid = values.begin() + static_cast<std::ptrdiff_t>(values.size() / 2);
-  std::nth_element(values.begin(), mid, values.end());
-  if (values.size() % 2 == 1) return *mid;
-  return 0.5 * (*mid + *std::max_element(values.begin(), mid));
-}
+double median(const std::vector<double>& values) { return eval::compute_error_stats(values).median; }
 
 template <class Field>
 std::vector<double> column(const std::vector<StereoFrameResult>& frames, Field field) {
