@@ -422,14 +422,18 @@ std::vector<Transformed> standard_transformations(const cv::Mat& image) {
   return out;
 }
 
+Peer ros2d_peer(int max_features) {
+  features::ExtractorOptions options;
+  options.max_features = max_features;
+  auto ros2d = std::make_shared<features::FeatureExtractor>(options);
+  return {max_features > 0 ? "ROS2D " + std::to_string(max_features) : "ROS2D", ros2d->norm_type(),
+          [ros2d](const cv::Mat& g, std::vector<cv::KeyPoint>& k, cv::Mat& d) { ros2d->extract(g, k, d); },
+          [ros2d](const cv::Mat& g, std::vector<cv::KeyPoint>& k) { ros2d->detect(g, k); }};
+}
+
 std::vector<Peer> make_peers(int orb_features) {
   std::vector<Peer> peers;
-  {
-    auto ros2d = std::make_shared<features::FeatureExtractor>(features::ExtractorOptions{});
-    peers.push_back({"ROS2D", ros2d->norm_type(),
-                     [ros2d](const cv::Mat& g, std::vector<cv::KeyPoint>& k, cv::Mat& d) { ros2d->extract(g, k, d); },
-                     [ros2d](const cv::Mat& g, std::vector<cv::KeyPoint>& k) { ros2d->detect(g, k); }});
-  }
+  peers.push_back(ros2d_peer());
   const auto opencv = [&peers](std::string name, int norm, cv::Ptr<cv::Feature2D> f) {
     peers.push_back({std::move(name), norm,
                      [f](const cv::Mat& g, std::vector<cv::KeyPoint>& k, cv::Mat& d) {

@@ -110,6 +110,9 @@ struct Peer {
   std::function<void(const cv::Mat&, std::vector<cv::KeyPoint>&)> detect;
 };
 
+/// ROS2D (rankslam::features, its defaults), keeping its strongest `max_features` (0: all).
+[[nodiscard]] Peer ros2d_peer(int max_features = 0);
+
 /// Every method compared, in the tables' order: ROS2D (rankslam::features, its defaults), SIFT,
 /// ORB (`orb_features`), BRISK, AKAZE, FAST (threshold 20, non-maximum suppression) with SIFT
 /// descriptors. OpenCV's defaults otherwise.

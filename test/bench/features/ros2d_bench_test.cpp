@@ -3,7 +3,6 @@
 // and on a EuRoC frame rotated by 30°, ROS2D capped to its strongest 5× SIFT's count.
 
 #include "feature_evaluation.hpp"
-#include "rankslam/features/extractor.hpp"
 
 #include <gtest/gtest.h>
 #include <opencv2/imgcodecs.hpp>
@@ -40,15 +39,11 @@ Scores ros2d_and_sift(const cv::Mat& a, const cv::Mat& b, const cv::Matx33d& h) 
   s.sift = evaluate_pair(sift, a, b, h, false);
   std::vector<cv::KeyPoint> ka;
   std::vector<cv::KeyPoint> kb;
-  Peer all = find(peers, "ROS2D");
+  Peer all = ros2d_peer();
   all.detect(a, ka);
   all.detect(b, kb);
   s.ros2d_all = static_cast<int>((ka.size() + kb.size()) / 2);
-  rankslam::features::ExtractorOptions options;
-  options.max_features = 5 * s.sift.count;
-  rankslam::features::FeatureExtractor capped(options);
-  Peer five{"ROS2D 5×", capped.norm_type(), nullptr,
-            [&capped](const cv::Mat& g, std::vector<cv::KeyPoint>& k) { capped.detect(g, k); }};
+  Peer five = ros2d_peer(5 * s.sift.count);
   s.ros2d = evaluate_pair(five, a, b, h, false);
   return s;
 }

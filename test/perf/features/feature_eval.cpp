@@ -9,7 +9,6 @@
 //   SIFT, detection alone, every row in minutes)
 
 #include "feature_evaluation.hpp"
-#include "rankslam/features/extractor.hpp"
 
 #include <opencv2/imgcodecs.hpp>
 
@@ -85,11 +84,7 @@ void print_table(const std::vector<Peer>& peers, const std::vector<Row>& rows, c
 void five_times_row(Peer& sift, const std::string& set, const std::string& label, const cv::Mat& a, const cv::Mat& b,
                     const cv::Matx33d& h) {
   const PairScore s = evaluate_pair(sift, a, b, h, false);
-  rankslam::features::ExtractorOptions options;
-  options.max_features = 5 * s.count;
-  rankslam::features::FeatureExtractor capped(options);
-  Peer five{"ROS2D 5x", capped.norm_type(), nullptr,
-            [&capped](const cv::Mat& g, std::vector<cv::KeyPoint>& k) { capped.detect(g, k); }};
+  Peer five = ros2d_peer(5 * s.count);
   const PairScore r = evaluate_pair(five, a, b, h, false);
   const bool holds = r.rep.repeatability >= s.rep.repeatability;
   const bool holds_plain = r.rep_plain.repeatability >= s.rep_plain.repeatability;
