@@ -55,6 +55,7 @@ struct StereoVoArgs {
   bool no_ba = false;                  ///< frame-to-frame only, no window bundle adjustment
   int max_frames = 0;                  ///< 0 = all pairs
   std::filesystem::path ground_truth;  ///< overrides the dataset's own (TUM, or KITTI poses)
+  std::uint64_t seed = 0;              ///< MSSE hypothesis sampler seed; 0 = the built-in one
 };
 
 struct RunArgs {

@@ -84,6 +84,7 @@ int main(int argc, char** argv) {
   stereo_cmd->add_option("--features", stereo.features, "Features: ros2d (default), sift or orb")->check(CLI::IsMember({"ros2d", "sift", "orb"}));
   stereo_cmd->add_flag("--no-ba", stereo.no_ba, "Frame-to-frame odometry only, without the sliding-window bundle adjustment");
   stereo_cmd->add_option("--max-frames", stereo.max_frames, "Process at most this many stereo pairs (0 = all)")->check(CLI::NonNegativeNumber);
+  stereo_cmd->add_option("--seed", stereo.seed, "Seed of the MSSE hypothesis sampler (0 = the built-in seed), to measure the spread over samplings")->check(CLI::NonNegativeNumber);
   stereo_cmd->add_option("--ground-truth", stereo.ground_truth, "Ground truth of the left camera (TUM format, or KITTI poses), instead of the dataset's own");
 
   RunArgs run;

@@ -25,6 +25,7 @@ int run_stereo_vo(const StereoVoArgs& args) {
   stereo::StereoOdometryConfig config;
   config.features.kind = *features::parse_feature_kind(args.features);  // CLI11 checked the name
   config.bundle_adjustment = !args.no_ba;
+  if (args.seed != 0) config.msse.seed = args.seed;
   stereo::SequenceOptions options;
   options.max_frames = args.max_frames;
   std::printf("stereo-vo: %zu pairs of %s, features %s, window bundle adjustment %s\n", dataset.value().frames.size(),

@@ -31,7 +31,7 @@ fs::path shared_data() { return fs::path(RANKSLAM_SHARED_DATA); }
 
 
 TEST(Cli, HelpForEverySubcommand) {
-  for (const char* sub : {"", "replay", "simulate", "eval", "run"}) {
+  for (const char* sub : {"", "replay", "simulate", "eval", "run", "stereo-vo"}) {
     const auto result = run(std::string(sub) + " --help");
     EXPECT_EQ(result.exit_code, 0) << sub << "\n" << result.output;
     EXPECT_NE(result.output.find("Usage"), std::string::npos) << sub;
@@ -405,11 +405,30 @@ TEST(Cli, AMissingInputFileIsAnInputErrorNamingIt) {
   for (const std::string& command :
        {"replay " + dir.string() + " --out " + (dir / "out").string() + " --config " + missing, "run --config " + missing,
         "record --config " + missing + " --out " + (dir / "rec").string(), "eval " + missing + " " + missing,
-        "replay " + (dir / "no-recording").string() + " --out " + (dir / "out").string()}) {
+        "replay " + (dir / "no-recording").string() + " --out " + (dir / "out").string(),
+        "stereo-vo " + (dir / "no-sequence").string() + " --out " + (dir / "vo").string()}) {
     const auto result = run(command);
     EXPECT_EQ(result.exit_code, 3) << command << "\n" << result.output;
     EXPECT_NE(result.output.find(dir.string()), std::string::npos) << command << "\n" << result.output;
   }
+}
+
+TEST(Cli, StereoVoOnTheRealEurocHeadWritesItsSetForAnySeed) {
+  const fs::path sequence = shared_data() / "euroc/V1_01_easy_head";
+  if (!fs::exists(sequence)) GTEST_SKIP() << "shared data not found at " << shared_data() << ": stereo-vo test skipped";
+  const fs::path dir = fresh_dir("rankslam_cli_stereo_vo");
+  for (const char* seed : {"1", "2"}) {
+    const fs::path out = dir / seed;
+    const auto result = run("stereo-vo " + sequence.string() + " --out " + out.string() +
+                            " --features orb --max-frames 8 --seed " + seed);
+    ASSERT_EQ(result.exit_code, 0) << result.output;
+    std::ifstream trajectory(out / "trajectory.txt");
+    int poses = 0;
+    for (std::string line; std::getline(trajectory, line);) poses += !line.empty() && line[0] != '#';
+    EXPECT_EQ(poses, 8) << out;
+    EXPECT_TRUE(fs::exists(out / "report.json"));
+  }
+  EXPECT_EQ(run("stereo-vo " + sequence.string() + " --out " + (dir / "x").string() + " --max-frames 2 --seed -1").exit_code, 2);
 }
 
 }  // namespace
