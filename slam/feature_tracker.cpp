@@ -33,6 +33,10 @@ FeatureTracker::FeatureTracker(const TrackerParts& parts, bool fused)
       motion_(config_) {
   const auto capacity = static_cast<std::size_t>(config_.orb_features) * 2;
   for (auto& tracked : frames_) tracked.features.reserve(capacity);
+  if (config_.dense_refinement != 0) {
+    dense_.emplace(parts.camera, config_.dense_options(parts.camera.depth_noise_per_m()));
+    for (auto& tracked : frames_) dense_->reserve(tracked.dense);
+  }
   bridge_.reserve(capacity);
   if (!fused_) return;
   if (const std::string error = parts_.geometric.configure(parts.camera, config_.geometric_frontend(), {}, &parts_.team);
@@ -61,6 +65,13 @@ void FeatureTracker::extract(const hal::RgbdFrame& frame, const cv::Mat* image, 
       orb_for(source).extract(*image, frame.depth, tracked.features);
     } else {
       tracked.features.clear();
+    }
+    // The dense refinement's pyramids beside the ORB features (on the companion in fused mode).
+    if (dense_ && (image == nullptr || !have_depth ||
+                   !tracked.dense.prepare(*image, frame.depth, parts_.camera.metres(1),
+                                          static_cast<float>(config_.min_depth_m),
+                                          static_cast<float>(config_.max_depth_m), static_cast<int>(source)))) {
+      tracked.dense.invalidate();
     }
   };
   // Fused: the ORB features on the companion thread while the geometric ones take the team
@@ -240,6 +251,7 @@ const FeatureTracker::TrackedFrame* FeatureTracker::register_current(const hal::
       }
     }
   }
+  if (target != nullptr && dense_) refine_dense(*target, result);
   if (target != nullptr && prior != nullptr &&
       !parts_.arbiter.arbitrate(*prior, previous.T_world_cam, result.inliers, result.T_world_cam, result.wheels)) {
     target = nullptr;
@@ -259,6 +271,15 @@ const FeatureTracker::TrackedFrame* FeatureTracker::register_current(const hal::
     new_reference_ = false;  // the reference stays: the next frame that sees it snaps back
   }
   return target;
+}
+
+void FeatureTracker::refine_dense(const TrackedFrame& target, FrameResult& result) {
+  const auto stage_start = SteadyClock::now();
+  const TrackedFrame& tracked = frames_[static_cast<std::size_t>(current_)];
+  Eigen::Isometry3d T_cur_target = result.T_world_cam.inverse() * target.T_world_cam;
+  const dense::DenseResult dense = dense_->align(target.dense, tracked.dense, T_cur_target);
+  if (dense.ok) result.T_world_cam = lie::renormalised(target.T_world_cam * T_cur_target.inverse());
+  result.times.ms[kDense] = elapsed_ms(stage_start);
 }
 
 void FeatureTracker::chain_covariance(const TrackedFrame* target, const Matrix6d& target_covariance,

@@ -1,9 +1,11 @@
 #pragma once
 
+#include "rankslam/dense/aligner.hpp"
 #include "rankslam/slam/motion_model.hpp"
 #include "rankslam/slam/tracker.hpp"
 
 #include <array>
+#include <optional>
 #include <cstdint>
 
 namespace rankslam::slam {
@@ -42,6 +44,8 @@ class FeatureTracker final : public Tracker {
     Registrar::Velocity velocity = Registrar::Velocity::Zero();
     /// Covariance of the pose accumulated since the first frame (FrameResult::odom_covariance).
     Matrix6d odom_covariance = Matrix6d::Zero();
+    /// Image and depth pyramids for the dense refinement (sized only when it is on).
+    dense::DenseFrame dense;
   };
 
   /// Extracts the current frame's features into the free slot.
@@ -60,6 +64,8 @@ class FeatureTracker final : public Tracker {
   /// pose was measured from (the registration's target, or the previous frame where the wheels
   /// carried or joined it, or the motion model extrapolated it) and that step's own covariance.
   void chain_odom_covariance(const TrackedFrame* target, const nav::MotionPrior* prior, const FrameResult& result);
+  /// Dense refinement of the accepted registration of the current frame against `target`.
+  void refine_dense(const TrackedFrame& target, FrameResult& result);
   [[nodiscard]] OrbFrontend& orb_for(ImageSource source) {
     return source == ImageSource::kInfrared ? infrared_orb_ : orb_;
   }
@@ -70,6 +76,7 @@ class FeatureTracker final : public Tracker {
   OrbFrontend orb_;
   OrbFrontend infrared_orb_;
   MotionModel motion_;
+  std::optional<dense::DenseAligner> dense_;  ///< Set when config.dense_refinement is 1.
 
   // Reference, previous and current frame; the reference and the previous frame may be the same
   // one. Slot indices rotate instead of copying features.

@@ -246,10 +246,11 @@ constexpr int kCountedFrames = 2000;
 void expect_steady_state_without_allocations(Mode mode, int loop_candidates_per_frame,
                                              const std::vector<hal::RgbdFrame>& frames,
                                              const hal::Calibration& calibration, int ros2d_keypoints = 0,
-                                             int counted_frames = kCountedFrames) {
+                                             int counted_frames = kCountedFrames, int dense_refinement = 0) {
   SlamConfig config = config_for(mode);
   config.loop.candidates_per_frame = loop_candidates_per_frame;
   config.ros2d_keypoints = ros2d_keypoints;
+  config.dense_refinement = dense_refinement;
   SlamLoop loop(config, calibration);
   loop.set_synchronous_backend(false);
   const CountedRun counted = run(loop, frames, kWarmUpFrames, counted_frames);
@@ -329,6 +330,14 @@ TEST_F(SlamLoopAllocations, FusedSteadyStateAllocatesNothing) {
   // The default: all of a key-frame's candidates in its frame.
   expect_steady_state_without_allocations(Mode::kFused, SlamConfig{}.loop.candidates_per_frame, *frames_,
                                           recording_->calibration);
+}
+
+// The dense refinement of every registration (docs/methods.md §17): its pyramids and points are
+// sized at set-up; two passes counted, as it costs more per frame.
+TEST_F(SlamLoopAllocations, FusedWithDenseRefinementAllocatesNothing) {
+  ASSERT_TRUE(error_->empty()) << *error_;
+  expect_steady_state_without_allocations(Mode::kFused, SlamConfig{}.loop.candidates_per_frame, *frames_,
+                                          recording_->calibration, 0, 2 * kLoopFrames, 1);
 }
 
 // A kidnapped camera: every 90 frames the office's motion jumps half a period ahead, so tracking

@@ -1,5 +1,6 @@
 #pragma once
 
+#include "rankslam/dense/aligner.hpp"
 #include "rankslam/geometry/config.hpp"
 #include "rankslam/nav/wheel_arbiter.hpp"
 
@@ -300,6 +301,14 @@ struct SlamConfig {
   /// strongest orb_features of them, described by the same steered BRIEF as ORB's own; 0: ORB's
   /// FAST corners. Off: better only on plain walls in photometric mode (docs/results.md §13).
   int ros2d_keypoints = 0;
+  /// 1: each accepted feature registration is refined by dense photometric and depth alignment
+  /// to the same target (docs/methods.md §17); the feature estimate stays where the refinement
+  /// does not fit better or moves beyond dense_max_change_m.
+  int dense_refinement = 0;
+  int dense_levels = 3;
+  double dense_min_gradient = 6.0;
+  double dense_depth_weight = 1.0;
+  double dense_max_change_m = 0.03;
   int max_hamming_distance = 64;
   double min_depth_m = 0.3;
   double max_depth_m = 4.0;
@@ -367,6 +376,20 @@ struct SlamConfig {
   /// parameter list, without the depth range, MSSE hypotheses and seed every part shares.
   geometry::GeometryConfig geometry;
 
+  /// The dense refinement's options: the dense_* parameters with the loop's depth range and the
+  /// sensor's axial noise `depth_noise_per_m` (calibration).
+  [[nodiscard]] dense::DenseOptions dense_options(double depth_noise_per_m) const {
+    dense::DenseOptions options;
+    options.levels = dense_levels;
+    options.min_gradient = dense_min_gradient;
+    options.depth_weight = dense_depth_weight;
+    options.max_change_m = dense_max_change_m;
+    options.min_depth_m = min_depth_m;
+    options.max_depth_m = max_depth_m;
+    options.depth_noise_per_m = depth_noise_per_m;
+    return options;
+  }
+
   /// The geometric front-end's configuration: `geometry` with the loop's depth range, MSSE
   /// hypotheses and seed.
   [[nodiscard]] geometry::GeometryConfig geometric_frontend() const {
@@ -387,6 +410,13 @@ struct SlamConfig {
     visit("orb_fast_threshold", orb_fast_threshold, 1, 100, "", "FAST corner threshold");
     visit("ros2d_keypoints", ros2d_keypoints, 0, 1, "",
           "1: ROS2D keypoints (ch. 7) described by ORB's steered BRIEF instead of FAST corners");
+    visit("dense_refinement", dense_refinement, 0, 1, "", "1: dense photometric + depth refinement of each registration");
+    visit("dense_levels", dense_levels, 1, 5, "", "pyramid levels of the dense refinement");
+    visit("dense_min_gradient", dense_min_gradient, 0.0, 255.0, "grey/px",
+          "grey gradient from which a pixel joins the dense photometric term");
+    visit("dense_depth_weight", dense_depth_weight, 0.0, 10.0, "", "weight of the dense depth term (0: grey only)");
+    visit("dense_max_change_m", dense_max_change_m, 0.001, 1.0, "m",
+          "largest change the dense refinement may make to a registration");
     visit("max_hamming_distance", max_hamming_distance, 1, 256, "bit", "largest descriptor distance of a match");
     visit("min_depth_m", min_depth_m, 0.0, 10.0, "m", "nearest depth any part uses");
     visit("max_depth_m", max_depth_m, 0.1, 20.0, "m", "farthest depth any part uses (features, ICP, map)");

@@ -38,10 +38,10 @@ enum class FrameStatus : std::uint8_t {
 
 /// Per-stage wall time of one frame, milliseconds.
 struct StageTimes {
-  enum Stage : std::size_t { kPreprocess, kFeatures, kMatching, kEstimation, kIcp, kMapping };
-  static constexpr std::size_t kCount = 6;
-  static constexpr std::array<std::string_view, kCount> kNames = {"preprocess", "features", "matching",
-                                                                   "estimation", "icp",      "mapping"};
+  enum Stage : std::size_t { kPreprocess, kFeatures, kMatching, kEstimation, kIcp, kDense, kMapping };
+  static constexpr std::size_t kCount = 7;
+  static constexpr std::array<std::string_view, kCount> kNames = {"preprocess", "features", "matching", "estimation",
+                                                                   "icp",        "dense",    "mapping"};
   std::array<double, kCount> ms{};
 };
 
