@@ -304,7 +304,7 @@ struct SlamConfig {
   /// 1: each accepted feature registration is refined by dense photometric and depth alignment
   /// to the same target (docs/methods.md §17); the feature estimate stays where the refinement
   /// does not fit better or moves beyond dense_max_change_m. Off: 1.2–7× lower ATE on textured
-  /// scenes but worse on plain zig-zag panels (docs/results.md §14), and about 9 ms per frame.
+  /// scenes but worse on plain zig-zag panels (docs/results.md §14), and 9–11 ms more per frame.
   int dense_refinement = 0;
   int dense_levels = 3;
   double dense_min_gradient = 6.0;
