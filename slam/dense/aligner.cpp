@@ -5,6 +5,7 @@
 #include <algorithm>
 #include <cmath>
 #include <limits>
+#include <optional>
 #include <span>
 #include <stdexcept>
 #include <string>
@@ -174,7 +175,7 @@ bool DenseFrame::prepare(const cv::Mat& grey, const cv::Mat& depth_raw, float me
 }
 
 DenseAligner::DenseAligner(const camera::DepthCameraModel& camera, const DenseOptions& options)
-    : camera_(camera), options_(options) {
+    : camera_(camera), lens_(camera.calibration()), options_(options) {
   if (const auto field = options_.validate(); !field.empty()) {
     throw std::invalid_argument("dense options: " + std::string(field) + " out of range");
   }
@@ -187,18 +188,6 @@ DenseAligner::DenseAligner(const camera::DepthCameraModel& camera, const DenseOp
 
 void DenseAligner::reserve(DenseFrame& frame) const {
   frame.reserve(camera_.width(), camera_.height(), options_.levels);
-}
-
-Eigen::Vector2f DenseAligner::project(const Eigen::Vector3f& p) const {
-  const hal::CameraCalibration& c = camera_.calibration();
-  const double x = p.x() / p.z();
-  const double y = p.y() / p.z();
-  const auto& k = c.distortion;  // k1 k2 p1 p2 k3
-  const double r2 = x * x + y * y;
-  const double radial = 1.0 + r2 * (k[0] + r2 * (k[1] + r2 * k[4]));
-  const double xd = x * radial + 2.0 * k[2] * x * y + k[3] * (r2 + 2.0 * x * x);
-  const double yd = y * radial + k[2] * (r2 + 2.0 * y * y) + 2.0 * k[3] * x * y;
-  return {static_cast<float>(c.fx * xd + c.cx), static_cast<float>(c.fy * yd + c.cy)};
 }
 
 int DenseAligner::select_points(const DenseFrame& reference, int level) {
@@ -262,9 +251,10 @@ void DenseAligner::evaluate(const DenseFrame& current, int level, const Eigen::I
     r.r_depth = kNaN;
     const Eigen::Vector3f p = T * point.p;
     if (!(p.z() > static_cast<float>(options_.min_depth_m))) continue;
-    const Eigen::Vector2f uv = project(p);
-    const float x = (uv.x() + 0.5F) * scale - 0.5F;
-    const float y = (uv.y() + 0.5F) * scale - 0.5F;
+    const std::optional<Eigen::Vector2d> uv = lens_.project(p.cast<double>());
+    if (!uv) continue;
+    const float x = (static_cast<float>(uv->x()) + 0.5F) * scale - 0.5F;
+    const float y = (static_cast<float>(uv->y()) + 0.5F) * scale - 0.5F;
     if (!(x >= 1.0F && x < x_max && y >= 1.0F && y < y_max)) continue;
     const float inv_z = 1.0F / p.z();
     // ∂(pixel)/∂p of the pinhole (the lens distortion's own derivative is left out: the

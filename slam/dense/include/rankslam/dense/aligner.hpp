@@ -6,6 +6,7 @@
 // (docs/methods.md §1), started from the feature-based estimate.
 
 #include "rankslam/camera/depth_camera.hpp"
+#include "rankslam/camera/lens.hpp"
 
 #include <Eigen/Core>
 #include <Eigen/Geometry>
@@ -138,9 +139,9 @@ class DenseAligner {
   void accumulate(const Scales& scales, Eigen::Matrix<double, 6, 6>& H, Eigen::Matrix<double, 6, 1>& g) const;
   /// Truncated quadratic cost of the last evaluate() under `scales`; counts inliers.
   double cost(const Scales& scales, int* photo_inliers, int* depth_inliers) const;
-  [[nodiscard]] Eigen::Vector2f project(const Eigen::Vector3f& p_cam) const;  // full-resolution pixel
 
   camera::DepthCameraModel camera_;
+  camera::Lens lens_;  // projects into the frame (the depth camera's table back-projects)
   DenseOptions options_;
   std::vector<Point> points_;
   std::vector<int> candidates_;  // usable pixels of a level: index · 2 + photometric
