@@ -136,7 +136,7 @@ void KeyframeStore::copy_features(const geometry::GeometricFeatures& from, geome
 }
 
 double AdaptiveLoopThreshold::value() const {
-  if (state_.count < 2) return initial_;
+  if (!adaptive_ || state_.count < 2) return initial_;
   const double n = state_.count;
   const double mean_p = state_.sum_p / n;
   const double mean_g = state_.sum_g / n;

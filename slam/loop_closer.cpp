@@ -18,7 +18,7 @@ LoopCloser::LoopCloser(const SlamConfig& config, KeyframeStore& store, Registrar
       registrar_(registrar),
       geometric_(geometric),
       backend_(backend),
-      threshold_(config.loop.initial_threshold, config.loop.threshold_deviations) {
+      threshold_(config.loop.initial_threshold, config.loop.threshold_deviations, config.loop.adaptive_threshold != 0) {
   candidates_.reserve(static_cast<std::size_t>(config_.keyframe_capacity));
   // One key-frame adds at most loop_max_candidates closures; the log holds many key-frames' worth.
   log_.resize(static_cast<std::size_t>(std::max(kClosureLogMinCapacity, 4 * config_.loop.max_candidates)));

@@ -208,8 +208,11 @@ MotionEstimate Registrar::fused_estimate(const geometry::GeometricFeatures& targ
     if (!fused.ok && fused.failure_reason.empty()) fused.failure_reason = "no matches of either kind";
   } else {
     // 3. W_P = (k_P / n_P) / (k_G / n_G), W_G = 1 / W_P; one weighted MSSE over both sets.
-    const double photometric_weight = (static_cast<double>(photometric_inliers) / photometric_count) /
-                                      (static_cast<double>(geometric_inliers) / geometric_count);
+    const double photometric_weight =
+        config_.fused.inlier_ratio_weights == 0
+            ? 1.0
+            : (static_cast<double>(photometric_inliers) / photometric_count) /
+                  (static_cast<double>(geometric_inliers) / geometric_count);
     kind_weights_.assign(static_cast<std::size_t>(photometric_count), photometric_weight);
     kind_weights_.insert(kind_weights_.end(), static_cast<std::size_t>(geometric_count), 1.0 / photometric_weight);
     fused = estimator_.estimate(source_points_, target_points_, correspondence_sigma_m_, &predicted, kind_weights_);

@@ -68,6 +68,9 @@ struct FusedConfig {
   // Without min_inliers photometric inliers, the estimate's geometric inliers must also leave a
   // plane by this much: on one plane every SHOT descriptor looks alike (docs/results.md §5).
   double min_geometric_thickness_m = 0.1;
+  // 1: each kind weighted by its inlier ratio against the other's (the thesis' W_P, W_G); 0: equal
+  // weights, the comparison of the thesis' Table 5.4.
+  int inlier_ratio_weights = 1;
 
   template <typename Visitor>
   void visit_parameters(Visitor&& visit) {
@@ -87,6 +90,8 @@ struct FusedConfig {
           "fused mode: a feature estimate whose inliers fit worse than this many times their noise is not the ICP's prior");
     visit("fused_min_geometric_thickness_m", min_geometric_thickness_m, 0.0, 10.0, "m",
           "fused mode: geometric inliers must leave a plane by this much for their estimate to be the ICP's prior");
+    visit("fused_inlier_ratio_weights", inlier_ratio_weights, 0, 1, "",
+          "fused mode: 1 weights each kind by its inlier ratio against the other's; 0: equal weights");
   }
 };
 
@@ -122,6 +127,8 @@ struct LoopConfig {
   // (lean low: the thesis saw 68-207), and T_ε.
   double initial_threshold = 60.0;
   double threshold_deviations = 1.0;
+  // 0: the initial threshold throughout, the fixed threshold the thesis compares against (its Table 5.6).
+  int adaptive_threshold = 1;
   // Against false closures: the registered pose may differ from the graph's by at most this plus
   // the drift allowance, and the inliers must spread this far (no line or blob).
   double max_correction_m = 0.1;
@@ -163,6 +170,8 @@ struct LoopConfig {
           "inliers (photometric + geometric) that close a loop until two closures set the adaptive threshold");
     visit("loop_threshold_deviations", threshold_deviations, 0.0, 10.0, "",
           "T_epsilon: standard deviations below the mean inlier counts of past closures");
+    visit("loop_adaptive_threshold", adaptive_threshold, 0, 1, "",
+          "1: the threshold adapts to past closures; 0: loop_initial_threshold throughout");
     visit("loop_max_correction_m", max_correction_m, 0.0, 100.0, "m",
           "a closure may move the key-frame this much from the graph's estimate (plus drift allowance)");
     visit("loop_max_correction_deg", max_correction_deg, 0.0, 180.0, "deg",

@@ -93,10 +93,12 @@ class KeyframeStore {
 
 /// The adaptive loop-closure threshold ε (docs/methods.md §10): ε = (μ_P − T_ε·σ_P) + (μ_G − T_ε·σ_G)
 /// over the photometric and geometric inlier counts of the loop closures accepted so far; the
-/// initial value until two closures exist. A candidate closes the loop when k_P + k_G ≥ ε.
+/// initial value until two closures exist, or always where it is not `adaptive` (the fixed
+/// threshold the thesis compares against). A candidate closes the loop when k_P + k_G ≥ ε.
 class AdaptiveLoopThreshold {
  public:
-  AdaptiveLoopThreshold(double initial, double deviations) : initial_(initial), deviations_(deviations) {}
+  AdaptiveLoopThreshold(double initial, double deviations, bool adaptive = true)
+      : initial_(initial), deviations_(deviations), adaptive_(adaptive) {}
 
   [[nodiscard]] double value() const;
   /// Adds an accepted closure's inlier counts (running sums: no allocation).
@@ -117,6 +119,7 @@ class AdaptiveLoopThreshold {
  private:
   double initial_;
   double deviations_;
+  bool adaptive_;
   State state_;
 };
 
