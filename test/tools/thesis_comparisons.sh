@@ -10,10 +10,11 @@
 # the checkout). --scenes all also simulates office, zigzag-plain, poster-wall and dark-office
 # (--seeds) and the corridor loop (--corridor-seeds, replayed without wheels) into DIR/recordings
 # and replays them; recordings already there are reused. Writes DIR/runs.tsv (one line per
-# replay) and DIR/table.md (per variant and scene: mean ATE with its range over the seeds, loop
-# closures and false ones). --check exits 1 unless every replay finished with an ATE, no variant
-# with the adaptive threshold made a false closure, and fused beat geometric alone on
-# fr1_rpy_head. Exit 77 when there is no recording to replay, 2 on bad arguments.
+# replay, with its median frame time) and DIR/table.md (per variant and scene: mean ATE with its
+# range over the seeds, loop closures and false ones). --check exits 1 unless every replay
+# finished with an ATE, no variant with the adaptive threshold made a false closure, fused beat
+# geometric alone on fr1_rpy_head, and only the equal-weights variant weighted both kinds alike
+# there. Exit 77 when there is no recording to replay, 2 on bad arguments.
 set -euo pipefail
 
 bin='' out='' scenes=real jobs=2 seeds="1 2 3" corridor_seeds="1 2 3 4 5" check=0
@@ -136,10 +137,9 @@ awk -F'\t' -v order="$(printf '%s\n' "${variants[@]}" | cut -d'|' -f1 | paste -s
     if (!(key in lo) || $4 < lo[key]) lo[key] = $4
     if (!(key in hi) || $4 > hi[key]) hi[key] = $4
     closures[key] += $7; if ($8 != "null" && $8 != "") falses[key] += $8
-    ms[key] += $9
   }
   END {
-    printf "ATE RMSE (m): mean over the recordings of each scene (min–max); closures / false closures; median frame ms.\n\n| variant |"
+    printf "ATE RMSE (m): mean over the recordings of each scene (min–max); closures / false closures.\n\n| variant |"
     for (s = 1; s <= nscenes; ++s) printf " %s |", scenes[s]
     printf "\n|---|"
     for (s = 1; s <= nscenes; ++s) printf "---|"
@@ -152,7 +152,7 @@ awk -F'\t' -v order="$(printf '%s\n' "${variants[@]}" | cut -d'|' -f1 | paste -s
         if (!(key in n)) { printf " failed |"; continue }
         if (n[key] == 1) printf " %.4f", sum[key]
         else printf " %.4f (%.4f–%.4f)", sum[key] / n[key], lo[key], hi[key]
-        printf "; %d / %d; %.1f ms", closures[key], falses[key], ms[key] / n[key]
+        printf "; %d / %d", closures[key], falses[key]
         if (key in failed) printf "; %d failed", failed[key]
         printf " |"
       }
@@ -174,5 +174,20 @@ if [[ $check -eq 1 ]]; then
       }
       exit bad
     }' "$out/runs.tsv" || { echo "thesis_comparisons: check failed (see $out/runs.tsv)" >&2; exit 1; }
+  # The kind weights as frames.csv gives them: other than 0 and 1 only with the inlier ratios.
+  weights() {  # recording variant: the distinct photometric_weight values
+    local csv=$out/runs/$1.$2/frames.csv
+    [[ -f $csv ]] || return 0
+    awk -F, 'NR == 1 { for (i = 1; i <= NF; ++i) if ($i == "photometric_weight") c = i; next }
+             c { print $c + 0 }' "$csv" | sort -u
+  }
+  if [[ -d $out/runs/fr1_rpy_head.fused ]]; then
+    if weights fr1_rpy_head fused-equal-weights | grep -qvx '[01]'; then
+      echo "check: fr1_rpy_head fused-equal-weights: a kind weight other than 0 or 1" >&2; exit 1
+    fi
+    if ! weights fr1_rpy_head fused | grep -qvx '[01]'; then
+      echo "check: fr1_rpy_head fused: no frame weighted its kinds by their inlier ratios" >&2; exit 1
+    fi
+  fi
   echo "thesis_comparisons: check passed"
 fi

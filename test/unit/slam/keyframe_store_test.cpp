@@ -116,5 +116,14 @@ TEST(AdaptiveLoopThreshold, StartsAtTheInitialValueThenFollowsMeanMinusDeviation
   EXPECT_NEAR(strict.value(), 200.0, 1e-9);
 }
 
+TEST(AdaptiveLoopThreshold, AFixedOneKeepsTheInitialValueWhateverTheClosures) {
+  AdaptiveLoopThreshold fixed(100.0, 1.0, /*adaptive=*/false);
+  fixed.add(100, 40);
+  fixed.add(200, 60);
+  fixed.add(300, 80);
+  EXPECT_DOUBLE_EQ(fixed.value(), 100.0);
+  EXPECT_EQ(fixed.count(), 3);  // the statistics are still kept (and saved with the map)
+}
+
 }  // namespace
 }  // namespace rankslam::slam
