@@ -371,6 +371,7 @@ int run_replay(const ReplayArgs& args) {
   }
   json.integer("retired_keyframes", loop.retired_keyframes());
   json.number("peak_rss_mb", peak_rss_mb());
+  json.string("vector_kernels", vector_kernels());
   json.integer("map_points", static_cast<long long>(loop.map().size()));
   json.boolean("interrupted", interrupted);
   if (accuracy) {
@@ -414,9 +415,9 @@ int run_replay(const ReplayArgs& args) {
   if (exit_code == kExitOk && stop_requested()) exit_code = kExitInterrupted;
 
   const eval::Percentiles timing = eval::percentiles(pipeline.frame_ms());
-  std::printf("frames %llu  failed %d  skipped %u  median %.1f ms/frame\n",
+  std::printf("frames %llu  failed %d  skipped %u  median %.1f ms/frame (vector kernels %s)\n",
               static_cast<unsigned long long>(pipeline.frames()), failed_frames,
-              counters.corrupt, timing.median);
+              counters.corrupt, timing.median, vector_kernels().c_str());
   std::printf("status TRACKING %d  DEGRADED %d  LOST %d", pipeline.status_counts().tracking, pipeline.status_counts().degraded,
               pipeline.status_counts().lost);
   if (wheels) {

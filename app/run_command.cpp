@@ -293,6 +293,7 @@ int run_live(const RunArgs& args) {
               << "; the pose output runs with ordinary scheduling and a loaded CPU can delay its cycles\n";
   }
   std::cout << "pose output thread: " << (output_priority > 0 ? "SCHED_FIFO priority " + std::to_string(output_priority) : std::string("ordinary scheduling")) << std::endl;
+  std::cout << "vector kernels: " << vector_kernels() << std::endl;
 
   if (play_wheels) {
     // A frame played before the output thread's socket is bound never reaches it (the first wheel
@@ -385,6 +386,7 @@ int run_live(const RunArgs& args) {
   json.integer("loop_closures", loop.loop_closures());
   json.integer("loop_closures_refuted", loop.loop_closures_refuted());
   json.number("peak_rss_mb", peak_rss_mb());
+  json.string("vector_kernels", vector_kernels());
   json.string("camera", (openni2_camera != nullptr ? "openni2:" + robot.camera_location : "replay:" + recording.root.string()));
   if (openni2_camera != nullptr) {
     const openni2::OpenNI2Counters& c = openni2_camera->counters();

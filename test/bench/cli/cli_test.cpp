@@ -232,6 +232,30 @@ TEST(Cli, DefaultFusedReplayOfFr1RpyHeadStaysWithinTwoAndAHalfCentimetres) {
   EXPECT_EQ(count_data_lines(out / "loop_closures.csv"), report_number(report, "loop_closures"));
 }
 
+TEST(Cli, PortableKernelsForcedByTheEnvironmentTrackAsTheVectorOnes) {
+  const fs::path recording = shared_data() / "tum/fr1_desk_9";
+  if (!fs::exists(recording)) GTEST_SKIP() << "shared data not found at " << shared_data() << ": test skipped";
+  const fs::path vector_out = fresh_dir("rankslam_cli_vector_kernels");
+  const fs::path portable_out = fresh_dir("rankslam_cli_portable_kernels");
+  const auto vector_run = run("replay " + recording.string() + " --out " + vector_out.string() + " --quiet");
+  ASSERT_EQ(vector_run.exit_code, 0) << vector_run.output;
+  const auto portable_run = run_shell("RANKSLAM_PORTABLE_KERNELS=1 " + std::string(RANKSLAM_EXE) + " replay " +
+                                      recording.string() + " --out " + portable_out.string() + " --quiet");
+  ASSERT_EQ(portable_run.exit_code, 0) << portable_run.output;
+  const std::string vector_report = slurp(vector_out / "report.json");
+  const std::string portable_report = slurp(portable_out / "report.json");
+  EXPECT_NE(portable_report.find("\"vector_kernels\": \"portable\""), std::string::npos) << portable_report;
+  EXPECT_NE(portable_run.output.find("(vector kernels portable)"), std::string::npos) << portable_run.output;
+#if defined(__x86_64__) && defined(__GNUC__)
+  if (__builtin_cpu_supports("avx2") && __builtin_cpu_supports("fma")) {
+    EXPECT_NE(vector_report.find("\"vector_kernels\": \"avx2+fma"), std::string::npos) << vector_report;
+  }
+#endif
+  // The kernels' results agree within their tolerances: the trajectories do too.
+  EXPECT_NEAR(report_number(portable_report, "ate_rmse_m"), report_number(vector_report, "ate_rmse_m"), 1e-4);
+  EXPECT_EQ(report_number(portable_report, "failed_frames"), report_number(vector_report, "failed_frames"));
+}
+
 TEST(Cli, GeometricModeTracksPlainZigzagPanelsWherePhotometricFails) {
   const fs::path recording = fresh_dir("rankslam_cli_zigzag");
   const auto simulated = run("simulate zigzag-plain --out " + recording.string() + " --frames 150");

@@ -1,0 +1,14 @@
+#include "commands.hpp"
+
+#include "rankslam/geometry/matching.hpp"
+#include "rankslam/parallel/cpu_features.hpp"
+
+namespace rankslam::app {
+
+std::string vector_kernels() {
+  std::string name = parallel::vector_kernels();
+  if (geometry::DescriptorMatcher::cpu_has_vnni()) name += "+avx512vnni";
+  return name;
+}
+
+}  // namespace rankslam::app
