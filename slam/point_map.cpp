@@ -1,5 +1,6 @@
 #include "rankslam/slam/point_map.hpp"
 
+#include <algorithm>
 #include <bit>
 #include <cmath>
 #include <cstring>
@@ -25,13 +26,14 @@ std::size_t hash(std::int64_t key) {
 
 PointMap::PointMap(double voxel_m, std::size_t max_points)
     : inverse_voxel_m_(static_cast<float>(1.0 / voxel_m)),
-      max_points_(max_points),
+      max_points_(std::min<std::size_t>(max_points, kNoVoxel)),
       // A load factor of at most one half keeps linear probing short.
-      mask_(std::bit_ceil(max_points * 2) - 1),
-      table_(mask_ + 1) {}
+      mask_(std::bit_ceil(max_points_ * 2) - 1),
+      slots_(mask_ + 1, kNoVoxel),
+      voxels_(max_points_) {}
 
 void PointMap::clear() {
-  for (auto& voxel : table_) voxel = Voxel{};
+  std::fill(slots_.begin(), slots_.end(), kNoVoxel);
   used_ = 0;
   rejected_ = 0;
 }
@@ -43,27 +45,29 @@ void PointMap::insert(const Eigen::Vector3f& point_world, std::uint8_t blue, std
                                 static_cast<std::int64_t>(std::floor(scaled.y())),
                                 static_cast<std::int64_t>(std::floor(scaled.z())));
   for (std::size_t slot = hash(key) & mask_;; slot = (slot + 1) & mask_) {
-    Voxel& voxel = table_[slot];
-    if (voxel.key == key) {
-      voxel.sum += point_world;
-      voxel.blue_sum += blue;
-      voxel.green_sum += green;
-      voxel.red_sum += red;
-      ++voxel.count;
-      return;
-    }
-    if (voxel.key == kEmpty) {
+    const std::uint32_t index = slots_[slot];
+    if (index == kNoVoxel) {
       if (used_ >= max_points_) {
         ++rejected_;
         return;
       }
+      Voxel& voxel = voxels_[used_];
       voxel.key = key;
       voxel.sum = point_world;
       voxel.blue_sum = blue;
       voxel.green_sum = green;
       voxel.red_sum = red;
       voxel.count = 1;
-      ++used_;
+      slots_[slot] = static_cast<std::uint32_t>(used_++);
+      return;
+    }
+    Voxel& voxel = voxels_[index];
+    if (voxel.key == key) {
+      voxel.sum += point_world;
+      voxel.blue_sum += blue;
+      voxel.green_sum += green;
+      voxel.red_sum += red;
+      ++voxel.count;
       return;
     }
   }
@@ -80,8 +84,8 @@ std::string PointMap::to_ply(const Eigen::Isometry3d& T_out_world) const {
   std::size_t offset = ply.size();
   ply.resize(offset + used_ * kVertexBytes);
   static_assert(std::endian::native == std::endian::little, "PLY output assumes a little-endian host");
-  for (const auto& voxel : table_) {
-    if (voxel.key == kEmpty) continue;
+  for (std::size_t i = 0; i < used_; ++i) {
+    const Voxel& voxel = voxels_[i];
     const Eigen::Vector3f mean = T * Eigen::Vector3f(voxel.sum / static_cast<float>(voxel.count));
     std::memcpy(&ply[offset], mean.data(), 3 * sizeof(float));
     ply[offset + 12] = static_cast<char>(voxel.red_sum / voxel.count);

@@ -45,6 +45,28 @@ TEST(PointMap, NeverGrowsPastCapacity) {
   EXPECT_EQ(map.rejected_points(), 150U);
 }
 
+TEST(PointMap, AFullMapFindsEveryVoxelItHoldsAndClearsToEmpty) {
+  PointMap map(0.02, 1000);
+  const auto point = [](int i) {
+    return Eigen::Vector3f(static_cast<float>(i % 10) * 0.02F + 0.01F, static_cast<float>((i / 10) % 10) * 0.02F + 0.01F,
+                           static_cast<float>(i / 100) * 0.02F + 0.01F);
+  };
+  for (int i = 0; i < 1000; ++i) map.insert(point(i), 0, 0, static_cast<std::uint8_t>(i % 200));
+  EXPECT_EQ(map.size(), 1000U);
+  // Full, every voxel is still found: a second pass merges into them, nothing is rejected.
+  for (int i = 0; i < 1000; ++i) map.insert(point(i), 0, 0, static_cast<std::uint8_t>(i % 200));
+  EXPECT_EQ(map.size(), 1000U);
+  EXPECT_EQ(map.rejected_points(), 0U);
+  map.insert({5.0F, 5.0F, 5.0F}, 0, 0, 0);
+  EXPECT_EQ(map.rejected_points(), 1U);
+  map.clear();
+  EXPECT_EQ(map.size(), 0U);
+  EXPECT_EQ(map.rejected_points(), 0U);
+  map.insert(point(7), 1, 2, 3);
+  EXPECT_EQ(map.size(), 1U);
+  EXPECT_NE(map.to_ply().find("element vertex 1\n"), std::string::npos);
+}
+
 TEST(PointMap, IgnoresNonFinitePoints) {
   PointMap map(0.1, 10);
   map.insert({std::numeric_limits<float>::quiet_NaN(), 0.0F, 0.0F}, 0, 0, 0);

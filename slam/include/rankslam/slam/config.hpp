@@ -104,7 +104,7 @@ struct MapConfig {
   template <typename Visitor>
   void visit_parameters(Visitor&& visit) {
     visit("map_voxel_m", voxel_m, 0.001, 1.0, "m", "map voxel edge; points in one voxel are merged");
-    visit("map_max_points", max_points, 1000, 50'000'000, "", "capacity of the map");
+    visit("map_max_points", max_points, 1000, 50'000'000, "", "capacity of the map (about 48 bytes a point, allocated at start)");
     visit("map_points_per_keyframe", points_per_keyframe, 100, 307200, "", "points sampled per key-frame");
   }
 };

@@ -30,19 +30,23 @@ class PointMap {
 
  private:
   struct Voxel {
-    std::int64_t key = kEmpty;
+    std::int64_t key = 0;
     Eigen::Vector3f sum = Eigen::Vector3f::Zero();
     std::uint32_t blue_sum = 0;
     std::uint32_t green_sum = 0;
     std::uint32_t red_sum = 0;
     std::uint32_t count = 0;
   };
-  static constexpr std::int64_t kEmpty = INT64_MIN;
+  static constexpr std::uint32_t kNoVoxel = UINT32_MAX;
 
   float inverse_voxel_m_;
   std::size_t max_points_;
   std::size_t mask_;
-  std::vector<Voxel> table_;
+  /// Open-addressing hash table of indices into voxels_ (kNoVoxel: free), at most half full: a
+  /// table of indices, not of voxels, keeps the empty half at 4 bytes a slot.
+  std::vector<std::uint32_t> slots_;
+  /// The voxels in the order they were taken, max_points_ of them allocated at set-up.
+  std::vector<Voxel> voxels_;
   std::size_t used_ = 0;
   std::uint64_t rejected_ = 0;
 };
