@@ -71,9 +71,11 @@ done
 simulated() {  # scene seed [frames]
   local dir=$out/recordings/$1-$2
   if [[ ! -f $dir/groundtruth.txt ]]; then
-    rm -rf "$dir.tmp"
-    "$bin" simulate "$1" --seed "$2" --out "$dir.tmp" ${3:+--frames "$3"} > /dev/null
-    mv "$dir.tmp" "$dir"
+    # Written beside, then renamed: an interrupted simulation never passes for a recording.
+    local partial
+    partial=$(mktemp -d "$dir.partial.XXXXXX")
+    "$bin" simulate "$1" --seed "$2" --out "$partial" ${3:+--frames "$3"} > /dev/null
+    mv -T "$partial" "$dir"
   fi
   echo "$dir"
 }
