@@ -107,9 +107,9 @@ inline constexpr slam::Mode kDefaultMode = slam::Mode::kFused;
   return static_cast<double>(usage.ru_maxrss) / 1024.0;  // Linux reports kilobytes
 }
 
-/// The vector unit rankslam's own kernels run on ("avx2+fma", with "+avx512vnni" where SHOT
-/// matching uses it, or "portable"; RANKSLAM_PORTABLE_KERNELS forces the last): report.json's
-/// `vector_kernels`.
+/// The vector unit rankslam's own kernels run on ("avx2+fma" or "avx2", with "+avx512vnni"
+/// where SHOT matching uses it, or "portable"; RANKSLAM_PORTABLE_KERNELS forces the last):
+/// report.json's `vector_kernels`.
 [[nodiscard]] std::string vector_kernels();
 
 /// The scene `rankslam replay` simulates when given no recording.

@@ -38,9 +38,4 @@ inline bool cpu_has_avx2_fma() {
 #endif
 }
 
-/// The vector unit rankslam's own kernels run on: "avx2+fma" (AVX-512 VNNI for SHOT matching
-/// where the CPU has it, see geometry::DescriptorMatcher), else "portable" (their scalar loops,
-/// which the compiler may still vectorise for the build's baseline).
-inline const char* vector_kernels() { return cpu_has_avx2_fma() ? "avx2+fma" : "portable"; }
-
 }  // namespace rankslam::parallel
