@@ -131,7 +131,7 @@ std::string CheckpointWriter::operator()(const CheckpointContents& contents) {
       }
     }
   }
-  map_builder_.rebuild(contents.map.store);
+  map_builder_.rebuild_copy(contents.map.store);
   hal::FileSet set(out_dir_);
   std::string set_error = set.add_written("trajectory.txt", [&](const std::filesystem::path& path) {
     return eval::write_tum_trajectory(path, in_output_frame(contents.trajectory, frame_, T_base_cam_));

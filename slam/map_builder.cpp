@@ -1,12 +1,20 @@
 #include "rankslam/slam/map_builder.hpp"
 
+#include <algorithm>
+
 namespace rankslam::slam {
 
 MapBuilder::MapBuilder(const SlamConfig& config, const camera::DepthCameraModel& camera)
     : config_(config),
       camera_(camera),
-      map_(config.map.voxel_m, static_cast<std::size_t>(config.map.max_points)),
+      map_(config.map.voxel_m, capacity(config)),
       sampler_(static_cast<std::mt19937::result_type>(config.seed)) {}
+
+std::size_t MapBuilder::capacity(const SlamConfig& config) {
+  if (config.map.max_points > 0) return static_cast<std::size_t>(config.map.max_points);
+  return static_cast<std::size_t>(std::max(0, config.keyframe_capacity)) *
+         static_cast<std::size_t>(std::max(0, config.map.points_per_keyframe));
+}
 
 void MapBuilder::add_keyframe(const hal::RgbdFrame& frame, FrameImages& images, const Eigen::Isometry3d& T_world_cam,
                               StoredKeyframe* stored) {
@@ -16,6 +24,7 @@ void MapBuilder::add_keyframe(const hal::RgbdFrame& frame, FrameImages& images, 
   const auto max_depth_m = static_cast<float>(config_.max_depth_m);
   const bool colour = images.has_colour();
   const cv::Mat* grey = colour ? nullptr : images.feature_image(frame, ImageSource::kInfrared);
+  if (stored != nullptr) stored->T_world_map = T_world_cam;
   if (!colour && grey == nullptr) return;
   // Attempts are capped so a frame with little depth cannot stall the loop.
   int added = 0;
@@ -29,7 +38,7 @@ void MapBuilder::add_keyframe(const hal::RgbdFrame& frame, FrameImages& images, 
     if (z_m > max_depth_m) continue;
     const Eigen::Vector3f point_cam = camera_.back_project(u, v, z_m);
     const Eigen::Vector3f point = T * point_cam;
-    KeyframePoint coloured{point_cam, 0, 0, 0};
+    KeyframePoint coloured{point_cam, 0, 0, 0, false};
     if (colour) {
       const cv::Vec3b bgr = frame.rgb.at<cv::Vec3b>(v, u);
       coloured.blue = bgr[0];
@@ -39,7 +48,7 @@ void MapBuilder::add_keyframe(const hal::RgbdFrame& frame, FrameImages& images, 
       const unsigned char level = grey->at<unsigned char>(v, u);
       coloured.blue = coloured.green = coloured.red = level;
     }
-    map_.insert(point, coloured.blue, coloured.green, coloured.red);
+    coloured.in_map = map_.insert(point, coloured.blue, coloured.green, coloured.red);
     if (stored != nullptr && stored->point_count < static_cast<int>(stored->points.size())) {
       stored->points[static_cast<std::size_t>(stored->point_count++)] = coloured;
     }
@@ -47,15 +56,32 @@ void MapBuilder::add_keyframe(const hal::RgbdFrame& frame, FrameImages& images, 
   }
 }
 
-void MapBuilder::rebuild(const KeyframeStore& store) {
+void MapBuilder::remove_keyframe(StoredKeyframe& keyframe) {
+  // The points at the pose they were added at, computed as then, so each finds its voxel.
+  const Eigen::Isometry3f T = keyframe.T_world_map.cast<float>();
+  for (int p = 0; p < keyframe.point_count; ++p) {
+    KeyframePoint& point = keyframe.points[static_cast<std::size_t>(p)];
+    if (point.in_map) (void)map_.remove(T * point.point_cam, point.blue, point.green, point.red);
+    point.in_map = false;
+  }
+}
+
+void MapBuilder::rebuild(KeyframeStore& store) { insert_all(store, &store); }
+
+void MapBuilder::rebuild_copy(const KeyframeStore& store) { insert_all(store, nullptr); }
+
+void MapBuilder::insert_all(const KeyframeStore& store, KeyframeStore* noted) {
   map_.clear();
   for (int i = 0; i < store.capacity(); ++i) {
     const StoredKeyframe& keyframe = store.slot(i);
     if (!keyframe.used) continue;
+    StoredKeyframe* note = noted != nullptr ? &noted->slot(i) : nullptr;
+    if (note != nullptr) note->T_world_map = keyframe.T_world_cam;
     const Eigen::Isometry3f T = keyframe.T_world_cam.cast<float>();
     for (int p = 0; p < keyframe.point_count; ++p) {
       const KeyframePoint& point = keyframe.points[static_cast<std::size_t>(p)];
-      map_.insert(T * point.point_cam, point.blue, point.green, point.red);
+      const bool added = map_.insert(T * point.point_cam, point.blue, point.green, point.red);
+      if (note != nullptr) note->points[static_cast<std::size_t>(p)].in_map = added;
     }
   }
 }

@@ -35,42 +35,86 @@ PointMap::PointMap(double voxel_m, std::size_t max_points)
 void PointMap::clear() {
   std::fill(slots_.begin(), slots_.end(), kNoVoxel);
   used_ = 0;
+  points_ = 0;
   rejected_ = 0;
 }
 
-void PointMap::insert(const Eigen::Vector3f& point_world, std::uint8_t blue, std::uint8_t green, std::uint8_t red) {
-  if (!point_world.allFinite()) return;
+std::int64_t PointMap::key_of(const Eigen::Vector3f& point_world) const {
   const Eigen::Vector3f scaled = point_world * inverse_voxel_m_;
-  const std::int64_t key = pack(static_cast<std::int64_t>(std::floor(scaled.x())),
-                                static_cast<std::int64_t>(std::floor(scaled.y())),
-                                static_cast<std::int64_t>(std::floor(scaled.z())));
-  for (std::size_t slot = hash(key) & mask_;; slot = (slot + 1) & mask_) {
-    const std::uint32_t index = slots_[slot];
-    if (index == kNoVoxel) {
-      if (used_ >= max_points_) {
-        ++rejected_;
-        return;
-      }
-      Voxel& voxel = voxels_[used_];
-      voxel.key = key;
-      voxel.sum = point_world;
-      voxel.blue_sum = blue;
-      voxel.green_sum = green;
-      voxel.red_sum = red;
-      voxel.count = 1;
-      slots_[slot] = static_cast<std::uint32_t>(used_++);
-      return;
+  return pack(static_cast<std::int64_t>(std::floor(scaled.x())), static_cast<std::int64_t>(std::floor(scaled.y())),
+              static_cast<std::int64_t>(std::floor(scaled.z())));
+}
+
+std::size_t PointMap::find_slot(std::int64_t key) const {
+  std::size_t slot = hash(key) & mask_;
+  while (slots_[slot] != kNoVoxel && voxels_[slots_[slot]].key != key) slot = (slot + 1) & mask_;
+  return slot;
+}
+
+bool PointMap::insert(const Eigen::Vector3f& point_world, std::uint8_t blue, std::uint8_t green, std::uint8_t red) {
+  if (!point_world.allFinite()) return false;
+  const std::int64_t key = key_of(point_world);
+  const std::size_t slot = find_slot(key);
+  const std::uint32_t index = slots_[slot];
+  if (index == kNoVoxel) {
+    if (used_ >= max_points_) {
+      ++rejected_;
+      return false;
     }
-    Voxel& voxel = voxels_[index];
-    if (voxel.key == key) {
-      voxel.sum += point_world;
-      voxel.blue_sum += blue;
-      voxel.green_sum += green;
-      voxel.red_sum += red;
-      ++voxel.count;
-      return;
-    }
+    Voxel& voxel = voxels_[used_];
+    voxel.key = key;
+    voxel.sum = point_world;
+    voxel.blue_sum = blue;
+    voxel.green_sum = green;
+    voxel.red_sum = red;
+    voxel.count = 1;
+    slots_[slot] = static_cast<std::uint32_t>(used_++);
+    ++points_;
+    return true;
   }
+  Voxel& voxel = voxels_[index];
+  voxel.sum += point_world;
+  voxel.blue_sum += blue;
+  voxel.green_sum += green;
+  voxel.red_sum += red;
+  ++voxel.count;
+  ++points_;
+  return true;
+}
+
+bool PointMap::remove(const Eigen::Vector3f& point_world, std::uint8_t blue, std::uint8_t green, std::uint8_t red) {
+  if (!point_world.allFinite()) return false;
+  std::size_t slot = find_slot(key_of(point_world));
+  const std::uint32_t index = slots_[slot];
+  if (index == kNoVoxel) return false;
+  Voxel& voxel = voxels_[index];
+  --points_;
+  if (voxel.count > 1) {
+    voxel.sum -= point_world;
+    voxel.blue_sum -= std::min<std::uint32_t>(blue, voxel.blue_sum);
+    voxel.green_sum -= std::min<std::uint32_t>(green, voxel.green_sum);
+    voxel.red_sum -= std::min<std::uint32_t>(red, voxel.red_sum);
+    --voxel.count;
+    return true;
+  }
+  // The last point: the last voxel moves into its room and the table forgets it. Linear probing
+  // deletes by shifting back the entries after the hole that could have sat in it.
+  const auto last = static_cast<std::uint32_t>(used_ - 1);
+  if (index != last) {
+    slots_[find_slot(voxels_[last].key)] = index;
+    voxels_[index] = voxels_[last];
+  }
+  --used_;
+  for (std::size_t next = (slot + 1) & mask_; slots_[next] != kNoVoxel; next = (next + 1) & mask_) {
+    const std::size_t home = hash(voxels_[slots_[next]].key) & mask_;
+    // The entry at `next` may fill the hole unless its home lies cyclically in (slot, next].
+    const bool home_after_hole = slot <= next ? (slot < home && home <= next) : (slot < home || home <= next);
+    if (home_after_hole) continue;
+    slots_[slot] = slots_[next];
+    slot = next;
+  }
+  slots_[slot] = kNoVoxel;
+  return true;
 }
 
 std::string PointMap::to_ply(const Eigen::Isometry3d& T_out_world) const {

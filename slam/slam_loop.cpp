@@ -157,12 +157,12 @@ void SlamLoop::relocalise(FrameResult& result) {
     // extrapolated poses, reported as failed.
     result.retracted_frames = tracked_before;
     for (int slot = 0; slot < keyframe_store_.capacity(); ++slot) {
-      const StoredKeyframe& keyframe = keyframe_store_.slot(slot);
+      StoredKeyframe& keyframe = keyframe_store_.slot(slot);
       if (!keyframe.used || keyframe.sequence <= search_start_sequence_) continue;
       if (keyframe.node >= 0) backend_.remove_node(keyframe.node);
+      map_.remove_keyframe(keyframe);
       keyframe_store_.release(slot);
       ++retired_keyframes_;
-      rebuild_map_ = true;
     }
   }
   const Eigen::Isometry3d T_world_held = result.T_world_cam;
@@ -277,11 +277,11 @@ void SlamLoop::store_keyframe(const hal::RgbdFrame& frame, bool have_depth, Fram
     // stays connected.
     slot = keyframe_store_.retirement_candidate(result.T_world_cam, 2.0 * config_.loop.search_radius_m,
                                                 config_.loop.min_keyframe_gap);
-    if (slot < 0) {
-      if (have_depth) map_.add_keyframe(frame, images_, result.T_world_cam, nullptr);
-      return;
-    }
+    // Every key-frame is protected: this frame is not stored, and the map holds only what the
+    // store does.
+    if (slot < 0) return;
     backend_.remove_node(keyframe_store_.slot(slot).node);
+    map_.remove_keyframe(keyframe_store_.slot(slot));
     keyframe_store_.release(slot);
     ++retired_keyframes_;
   }
@@ -345,8 +345,9 @@ void SlamLoop::finish() {
   }
   if (wide_) (void)wide_->finish();
   backend_.finish(keyframe_store_, [this](const Eigen::Isometry3d& correction) { correct_tracking(correction); });
-  // The live map already sits on the only poses there are unless they moved or some were retired.
-  if (loop_closer_.closures() == 0 && (!wide_ || wide_->counters().edges == 0) && !rebuild_map_) return;
+  // The live map holds the stored key-frames' points at the poses they were added at: those are
+  // the poses there are unless a closure moved them.
+  if (loop_closer_.closures() == 0 && (!wide_ || wide_->counters().edges == 0)) return;
   map_.rebuild(keyframe_store_);
 }
 

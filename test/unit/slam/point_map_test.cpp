@@ -2,7 +2,12 @@
 
 #include <gtest/gtest.h>
 
+#include <algorithm>
+#include <array>
+#include <cmath>
 #include <cstring>
+#include <random>
+#include <vector>
 
 namespace rankslam::slam {
 namespace {
@@ -65,6 +70,82 @@ TEST(PointMap, AFullMapFindsEveryVoxelItHoldsAndClearsToEmpty) {
   map.insert(point(7), 1, 2, 3);
   EXPECT_EQ(map.size(), 1U);
   EXPECT_NE(map.to_ply().find("element vertex 1\n"), std::string::npos);
+}
+
+// The vertices of a PLY as (x, y, z, r, g, b) rows, sorted.
+std::vector<std::array<float, 6>> vertices(const std::string& ply) {
+  std::vector<std::array<float, 6>> out;
+  for (std::size_t offset = ply.find("end_header\n") + 11; offset + 15 <= ply.size(); offset += 15) {
+    std::array<float, 6> row{};
+    std::memcpy(row.data(), &ply[offset], 3 * sizeof(float));
+    for (int c = 0; c < 3; ++c) row[3 + c] = static_cast<unsigned char>(ply[offset + 12 + c]);
+    out.push_back(row);
+  }
+  std::sort(out.begin(), out.end());
+  return out;
+}
+
+TEST(PointMap, TakingOutPointsLeavesTheMapOfTheRest) {
+  // Three sets of points over one small region, so that they share voxels and the table's
+  // probe runs; the map after taking out the middle set, point by point in another order, must
+  // be the map of the other two.
+  std::mt19937 random(7);
+  std::uniform_real_distribution<float> coordinate(0.0F, 0.3F);
+  std::uniform_int_distribution<int> level(0, 255);
+  struct Point {
+    Eigen::Vector3f position;
+    std::uint8_t b, g, r;
+  };
+  std::array<std::vector<Point>, 3> sets;
+  for (auto& set : sets) {
+    for (int i = 0; i < 3000; ++i) {
+      set.push_back({{coordinate(random), coordinate(random), coordinate(random)}, static_cast<std::uint8_t>(level(random)),
+                     static_cast<std::uint8_t>(level(random)), static_cast<std::uint8_t>(level(random))});
+    }
+  }
+  PointMap all(0.02, 4000);
+  PointMap rest(0.02, 4000);
+  for (int s = 0; s < 3; ++s) {
+    for (const Point& p : sets[static_cast<std::size_t>(s)]) {
+      ASSERT_TRUE(all.insert(p.position, p.b, p.g, p.r));
+      if (s != 1) {
+        ASSERT_TRUE(rest.insert(p.position, p.b, p.g, p.r));
+      }
+    }
+  }
+  ASSERT_GT(all.size(), rest.size());
+  std::vector<Point> middle = sets[1];
+  std::shuffle(middle.begin(), middle.end(), random);
+  for (const Point& p : middle) ASSERT_TRUE(all.remove(p.position, p.b, p.g, p.r));
+  EXPECT_EQ(all.size(), rest.size());
+  EXPECT_EQ(all.points(), 6000U);
+  const auto got = vertices(all.to_ply());
+  const auto want = vertices(rest.to_ply());
+  ASSERT_EQ(got.size(), want.size());
+  // Each vertex has its twin (the means differ by rounding only; the colours not at all).
+  std::vector<bool> taken(want.size(), false);
+  int unmatched = 0;
+  for (const auto& row : got) {
+    bool found = false;
+    for (std::size_t j = 0; j < want.size() && !found; ++j) {
+      if (taken[j]) continue;
+      bool same = true;
+      for (std::size_t c = 0; c < 6 && same; ++c) same = std::abs(row[c] - want[j][c]) <= (c < 3 ? 1e-5F : 0.0F);
+      if (same) found = taken[j] = true;
+    }
+    unmatched += found ? 0 : 1;
+  }
+  EXPECT_EQ(unmatched, 0);
+  // Every voxel is still found after the shifts: taking out the rest empties the map, and its
+  // room is free again.
+  for (const std::size_t s : {0U, 2U}) {
+    for (const Point& p : sets[s]) ASSERT_TRUE(all.remove(p.position, p.b, p.g, p.r));
+  }
+  EXPECT_EQ(all.size(), 0U);
+  EXPECT_EQ(all.points(), 0U);
+  EXPECT_FALSE(all.remove(sets[0][0].position, 0, 0, 0));
+  for (const Point& p : sets[1]) ASSERT_TRUE(all.insert(p.position, p.b, p.g, p.r));
+  EXPECT_EQ(all.rejected_points(), 0U);
 }
 
 TEST(PointMap, IgnoresNonFinitePoints) {

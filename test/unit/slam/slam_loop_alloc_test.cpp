@@ -269,6 +269,17 @@ void expect_steady_state_without_allocations(Mode mode, int loop_candidates_per_
   EXPECT_GT(counted.keyframes, 20);
   EXPECT_GT(counted.retired_keyframes, 0);
   EXPECT_GT(counted.loop_closures, 0);
+  // The map holds the stored key-frames' points and no retired one's, within its capacity.
+  std::uint64_t stored_points = 0;
+  for (int slot = 0; slot < loop.keyframe_store().capacity(); ++slot) {
+    const StoredKeyframe& keyframe = loop.keyframe_store().slot(slot);
+    if (!keyframe.used) continue;
+    for (int p = 0; p < keyframe.point_count; ++p) stored_points += keyframe.points[static_cast<std::size_t>(p)].in_map ? 1 : 0;
+  }
+  EXPECT_EQ(loop.map().points(), stored_points);
+  EXPECT_GT(stored_points, 0U);
+  EXPECT_EQ(loop.map().rejected_points(), 0U);
+  EXPECT_EQ(loop.map().capacity(), static_cast<std::size_t>(config.keyframe_capacity * config.map.points_per_keyframe));
   // Spread over frames, no frame registers more candidates than asked.
   if (loop_candidates_per_frame > 0) {
     EXPECT_LE(counted.most_loop_candidates_in_a_frame, loop_candidates_per_frame);

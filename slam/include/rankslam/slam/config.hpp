@@ -98,13 +98,15 @@ struct FusedConfig {
 /// The coloured point map. Keys `slam.map_*`.
 struct MapConfig {
   double voxel_m = 0.02;
-  int max_points = 2'000'000;
+  /// 0: room for every stored key-frame's points (MapBuilder::capacity).
+  int max_points = 0;
   int points_per_keyframe = 5000;
 
   template <typename Visitor>
   void visit_parameters(Visitor&& visit) {
     visit("map_voxel_m", voxel_m, 0.001, 1.0, "m", "map voxel edge; points in one voxel are merged");
-    visit("map_max_points", max_points, 1000, 50'000'000, "", "capacity of the map (about 48 bytes a point, allocated at start)");
+    visit("map_max_points", max_points, 0, 50'000'000, "",
+          "capacity of the map (about 48 bytes a point, allocated at start); 0: keyframe_capacity x map_points_per_keyframe");
     visit("map_points_per_keyframe", points_per_keyframe, 100, 307200, "", "points sampled per key-frame");
   }
 };

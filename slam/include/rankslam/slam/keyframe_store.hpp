@@ -23,6 +23,8 @@ struct KeyframePoint {
   std::uint8_t blue = 0;
   std::uint8_t green = 0;
   std::uint8_t red = 0;
+  /// Whether the live map took it (it refuses points once full): only those are taken out again.
+  bool in_map = false;
 };
 
 struct StoredKeyframe {
@@ -45,6 +47,8 @@ struct StoredKeyframe {
   geometry::GeometricFeatures geometric;
   std::vector<KeyframePoint> points;
   int point_count = 0;
+  /// The pose the points were put into the live map at (MapBuilder), to take them out again.
+  Eigen::Isometry3d T_world_map = Eigen::Isometry3d::Identity();
   /// Loop closures this key-frame takes part in: the retirement policy keeps well-connected ones.
   int loop_closures = 0;
 };

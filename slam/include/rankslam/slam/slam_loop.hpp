@@ -174,8 +174,6 @@ class SlamLoop {
   int tracked_while_searching_ = 0;
   /// The newest key-frame when the search started: later ones were made by tracking since.
   std::int64_t search_start_sequence_ = 0;
-  /// Key-frames were retired after a relocalisation: the map is rebuilt at the end.
-  bool rebuild_map_ = false;
   /// False: the poses tracking gives are not in the map's frame (a loaded map not found yet, or
   /// `lost_by_doubt_`: since a doubted frame its image could have confirmed and did not).
   bool in_map_ = true;
