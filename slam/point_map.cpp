@@ -27,8 +27,8 @@ std::size_t hash(std::int64_t key) {
 PointMap::PointMap(double voxel_m, std::size_t max_points)
     : inverse_voxel_m_(static_cast<float>(1.0 / voxel_m)),
       max_points_(std::min<std::size_t>(max_points, kNoVoxel)),
-      // A load factor of at most one half keeps linear probing short.
-      mask_(std::bit_ceil(max_points_ * 2) - 1),
+      // A load factor of at most two thirds keeps linear probing short.
+      mask_(std::bit_ceil(max_points_ + max_points_ / 2) - 1),
       slots_(mask_ + 1, kNoVoxel),
       voxels_(max_points_) {}
 
@@ -47,7 +47,7 @@ std::int64_t PointMap::key_of(const Eigen::Vector3f& point_world) const {
 
 std::size_t PointMap::find_slot(std::int64_t key) const {
   std::size_t slot = hash(key) & mask_;
-  while (slots_[slot] != kNoVoxel && voxels_[slots_[slot]].key != key) slot = (slot + 1) & mask_;
+  while (slots_[slot] != kNoVoxel && voxels_[slots_[slot]].key() != key) slot = (slot + 1) & mask_;
   return slot;
 }
 
@@ -62,7 +62,7 @@ bool PointMap::insert(const Eigen::Vector3f& point_world, std::uint8_t blue, std
       return false;
     }
     Voxel& voxel = voxels_[used_];
-    voxel.key = key;
+    voxel.set_key(key);
     voxel.sum = point_world;
     voxel.blue_sum = blue;
     voxel.green_sum = green;
@@ -101,12 +101,12 @@ bool PointMap::remove(const Eigen::Vector3f& point_world, std::uint8_t blue, std
   // deletes by shifting back the entries after the hole that could have sat in it.
   const auto last = static_cast<std::uint32_t>(used_ - 1);
   if (index != last) {
-    slots_[find_slot(voxels_[last].key)] = index;
+    slots_[find_slot(voxels_[last].key())] = index;
     voxels_[index] = voxels_[last];
   }
   --used_;
   for (std::size_t next = (slot + 1) & mask_; slots_[next] != kNoVoxel; next = (next + 1) & mask_) {
-    const std::size_t home = hash(voxels_[slots_[next]].key) & mask_;
+    const std::size_t home = hash(voxels_[slots_[next]].key()) & mask_;
     // The entry at `next` may fill the hole unless its home lies cyclically in (slot, next].
     const bool home_after_hole = slot <= next ? (slot < home && home <= next) : (slot < home || home <= next);
     if (home_after_hole) continue;

@@ -106,7 +106,7 @@ struct MapConfig {
   void visit_parameters(Visitor&& visit) {
     visit("map_voxel_m", voxel_m, 0.001, 1.0, "m", "map voxel edge; points in one voxel are merged");
     visit("map_max_points", max_points, 0, 50'000'000, "",
-          "capacity of the map (about 48 bytes a point, allocated at start); 0: keyframe_capacity x map_points_per_keyframe");
+          "capacity of the map (about 43 bytes a point, allocated at start); 0: keyframe_capacity x map_points_per_keyframe");
     visit("map_points_per_keyframe", points_per_keyframe, 100, 307200, "", "points sampled per key-frame");
   }
 };

@@ -36,14 +36,25 @@ class PointMap {
   [[nodiscard]] std::string to_ply(const Eigen::Isometry3d& T_out_world = Eigen::Isometry3d::Identity()) const;
 
  private:
+  // 36 bytes: the key in two halves keeps the struct at 4-byte alignment.
   struct Voxel {
-    std::int64_t key = 0;
+    std::uint32_t key_low = 0;
+    std::uint32_t key_high = 0;
     Eigen::Vector3f sum = Eigen::Vector3f::Zero();
     std::uint32_t blue_sum = 0;
     std::uint32_t green_sum = 0;
     std::uint32_t red_sum = 0;
     std::uint32_t count = 0;
+
+    [[nodiscard]] std::int64_t key() const {
+      return static_cast<std::int64_t>((static_cast<std::uint64_t>(key_high) << 32U) | key_low);
+    }
+    void set_key(std::int64_t key) {
+      key_low = static_cast<std::uint32_t>(static_cast<std::uint64_t>(key));
+      key_high = static_cast<std::uint32_t>(static_cast<std::uint64_t>(key) >> 32U);
+    }
   };
+  static_assert(sizeof(Voxel) == 36);
   static constexpr std::uint32_t kNoVoxel = UINT32_MAX;
 
   [[nodiscard]] std::int64_t key_of(const Eigen::Vector3f& point_world) const;
@@ -53,8 +64,8 @@ class PointMap {
   float inverse_voxel_m_;
   std::size_t max_points_;
   std::size_t mask_;
-  /// Open-addressing hash table of indices into voxels_ (kNoVoxel: free), at most half full: a
-  /// table of indices, not of voxels, keeps the empty half at 4 bytes a slot.
+  /// Open-addressing hash table of indices into voxels_ (kNoVoxel: free), at most two thirds
+  /// full: a table of indices, not of voxels, keeps the empty room at 4 bytes a slot.
   std::vector<std::uint32_t> slots_;
   /// The voxels in the order they were taken, max_points_ of them allocated at set-up.
   std::vector<Voxel> voxels_;
