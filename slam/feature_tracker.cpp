@@ -39,7 +39,8 @@ FeatureTracker::FeatureTracker(const TrackerParts& parts, bool fused)
   }
   bridge_.reserve(capacity);
   if (!fused_) return;
-  if (const std::string error = parts_.geometric.configure(parts.camera, config_.geometric_frontend(), {}, &parts_.team);
+  if (const std::string error = parts_.geometric.configure(parts.camera, config_.geometric_frontend(),
+                                                           geometric_capacities(config_), &parts_.team);
       !error.empty()) {
     throw std::invalid_argument(error);
   }

@@ -16,7 +16,8 @@ using enum StageTimes::Stage;
 }  // namespace
 
 GeometricTracker::GeometricTracker(const TrackerParts& parts) : parts_(parts), motion_(parts.config) {
-  if (const std::string error = parts_.geometric.configure(parts.camera, parts.config.geometric_frontend(), {},
+  if (const std::string error = parts_.geometric.configure(parts.camera, parts.config.geometric_frontend(),
+                                                                  geometric_capacities(parts.config),
                                                                   &parts_.team);
       !error.empty()) {
     throw std::invalid_argument(error);

@@ -41,7 +41,7 @@ Registrar::Registrar(const SlamConfig& config, const camera::DepthCameraModel& c
       companion_(companion),
       geometric_(geometric),
       estimator_(config, estimator, static_cast<std::size_t>(config.orb_features) * 2 +
-                             static_cast<std::size_t>(geometry::FrontendCapacities{}.max_keypoints)) {
+                             static_cast<std::size_t>(config.geometry.max_keypoints)) {
   const double prior_rad = deg_to_rad(config_.fused.icp_prior_sigma_deg);
   icp_prior_information_ << Eigen::Vector3d::Constant(1.0 / (prior_rad * prior_rad)),
       Eigen::Vector3d::Constant(1.0 / (config_.fused.icp_prior_sigma_m * config_.fused.icp_prior_sigma_m));
@@ -49,7 +49,7 @@ Registrar::Registrar(const SlamConfig& config, const camera::DepthCameraModel& c
   matches_.reserve(capacity);
   matcher_.reserve(capacity);
   const std::size_t correspondence_capacity =
-      capacity + static_cast<std::size_t>(geometry::FrontendCapacities{}.max_keypoints);
+      capacity + static_cast<std::size_t>(config.geometry.max_keypoints);
   source_points_.reserve(correspondence_capacity);
   target_points_.reserve(correspondence_capacity);
   correspondence_sigma_m_.reserve(correspondence_capacity);

@@ -14,7 +14,10 @@ RobustEstimator robust_estimator(const SlamConfig& config) {
 }
 
 KeyframeLayout keyframe_layout(const SlamConfig& config) {
-  const auto orb = static_cast<std::size_t>(config.orb_features) * 2;
+  // The fixed-memory extractor keeps at most orb_features keypoints (ROS2D's too: it describes up
+  // to that many); OpenCV's ORB may return more.
+  const auto orb = static_cast<std::size_t>(config.orb_features) *
+                   (config.orb_implementation == OrbImplementation::kFixedMemory ? 1U : 2U);
   switch (config.mode) {
     case Mode::kBaseline:
     case Mode::kPhotometric: return {orb, 0, 0};
@@ -22,6 +25,12 @@ KeyframeLayout keyframe_layout(const SlamConfig& config) {
     case Mode::kFused: return {orb, config.geometry.max_keypoints, config.keyframe_cloud_points};
   }
   throw std::invalid_argument("slam.mode: unknown mode " + std::to_string(static_cast<int>(config.mode)));
+}
+
+geometry::FrontendCapacities geometric_capacities(const SlamConfig& config) {
+  geometry::FrontendCapacities capacities;
+  capacities.max_keypoints = config.geometry.max_keypoints;
+  return capacities;
 }
 
 std::unique_ptr<Tracker> make_tracker(const TrackerParts& parts) {

@@ -17,7 +17,11 @@ TEST(TrackerFactory, TheModeChoosesTheEstimatorAndWhatAKeyframeKeeps) {
     EXPECT_EQ(robust_estimator(config_of(mode)), RobustEstimator::kMsse) << to_string(mode);
   }
   const SlamConfig defaults;
-  const auto orb = static_cast<std::size_t>(defaults.orb_features) * 2;
+  // The fixed-memory extractor's cap (orb_extractor_test); OpenCV's ORB gets twice the room.
+  const auto orb = static_cast<std::size_t>(defaults.orb_features);
+  SlamConfig opencv = config_of(Mode::kFused);
+  opencv.orb_implementation = OrbImplementation::kOpenCv;
+  EXPECT_EQ(keyframe_layout(opencv).photometric_features, 2 * orb);
   for (const Mode mode : {Mode::kBaseline, Mode::kPhotometric}) {
     const KeyframeLayout layout = keyframe_layout(config_of(mode));
     EXPECT_EQ(layout.photometric_features, orb) << to_string(mode);

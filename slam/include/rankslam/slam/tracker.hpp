@@ -80,6 +80,9 @@ class Tracker {
 [[nodiscard]] RobustEstimator robust_estimator(const SlamConfig& config);
 /// The key-frame content of the configured mode's tracker.
 [[nodiscard]] KeyframeLayout keyframe_layout(const SlamConfig& config);
+/// The geometric front-end's buffers: room for the keypoints a frame keeps
+/// (geometry.max_keypoints), no more.
+[[nodiscard]] geometry::FrontendCapacities geometric_capacities(const SlamConfig& config);
 /// The tracker of the configured mode, set up (allocates; throws std::invalid_argument for a
 /// configuration its parts reject).
 [[nodiscard]] std::unique_ptr<Tracker> make_tracker(const TrackerParts& parts);
