@@ -97,9 +97,14 @@ int run_replay(const ReplayArgs& args) {
               << describe_slam_config(config);
   }
 
-  // The wide-angle camera's images, paired with the colour frames by nearest stamp. All of them
-  // are read: the pairing stops where the colour frames end.
-  const std::unique_ptr<replay::ReplayImageCamera> wide_camera = make_replay_wide_camera(recording, options);
+  // The wide-angle camera's images, paired with the colour frames by nearest stamp, where the
+  // SLAM reads them. All of them are read: the pairing stops where the colour frames end.
+  const std::unique_ptr<replay::ReplayImageCamera> wide_camera =
+      config.wide.enabled() ? make_replay_wide_camera(recording, options) : nullptr;
+  if (!wide_camera && !args.quiet && !recording.fisheye.empty()) {
+    std::cout << "wide-angle camera: " << recording.fisheye.size()
+              << " images, not read (slam.wide_*_candidates are 0)\n";
+  }
   std::optional<hal::NearestImage> wide;
   if (wide_camera) {
     if (auto error = wide_camera->open(); !error.empty()) {
