@@ -20,6 +20,10 @@ LoopCloser::LoopCloser(const SlamConfig& config, KeyframeStore& store, Registrar
       backend_(backend),
       threshold_(config.loop.initial_threshold, config.loop.threshold_deviations, config.loop.adaptive_threshold != 0) {
   candidates_.reserve(static_cast<std::size_t>(config_.keyframe_capacity));
+  if (store_.capacity() > 0) {
+    stored_decoded_ = store_.slot(0).geometric.make_decoded();
+    current_decoded_ = store_.slot(0).geometric.make_decoded();
+  }
   // One key-frame adds at most loop_max_candidates closures; the log holds many key-frames' worth.
   log_.resize(static_cast<std::size_t>(std::max(kClosureLogMinCapacity, 4 * config_.loop.max_candidates)));
 }
@@ -162,11 +166,20 @@ void LoopCloser::try_candidate(StoredKeyframe& stored, FrameResult& result) {
 bool LoopCloser::register_stored(const StoredKeyframe& stored, const StoredKeyframe& current,
                                  const Eigen::Isometry3d& predicted, double min_inliers,
                                  StoredRegistration& out) {
-  const bool with_geometry = search_geometric_ != nullptr;
+  bool with_geometry = search_geometric_ != nullptr;
+  if (with_geometry && (current_decoded_from_ != &current || current_decoded_sequence_ != current.sequence)) {
+    current_decoded_from_ = nullptr;
+    if (current.geometric.decode(current_decoded_)) {
+      current_decoded_from_ = &current;
+      current_decoded_sequence_ = current.sequence;
+    }
+  }
+  // Sized from the store at set-up: a decode cannot fail.
+  with_geometry = with_geometry && current_decoded_from_ != nullptr && stored.geometric.decode(stored_decoded_);
   FrameResult scratch;
   out.estimate = registrar_.register_frames(
       stored.photometric, stored.velocity, current.photometric, current.velocity, scratch, predicted, predicted,
-      with_geometry ? &stored.geometric : nullptr, with_geometry ? &current.geometric : nullptr, /*refine=*/false);
+      with_geometry ? &stored_decoded_ : nullptr, with_geometry ? &current_decoded_ : nullptr, /*refine=*/false);
   if (!out.estimate.ok || !out.estimate.T_target_source.matrix().allFinite()) return false;
   out.photometric_inliers = with_geometry ? scratch.photometric_inliers : scratch.inliers;
   out.geometric_inliers = with_geometry ? scratch.geometric_inliers : 0;
@@ -179,7 +192,7 @@ bool LoopCloser::register_stored(const StoredKeyframe& stored, const StoredKeyfr
   out.refined_by_icp = false;
   if (with_geometry) {
     const StoredRefinement refinement =
-        refine_on_stored_cloud(registrar_, geometric_, config_, config_.loop.icp_above_rotation_sigma_deg, stored.geometric,
+        refine_on_stored_cloud(registrar_, geometric_, config_, config_.loop.icp_above_rotation_sigma_deg, stored_decoded_,
                                *search_geometric_, out.T_stored_current);
     if (refinement == StoredRefinement::kFailed) return false;
     out.refined_by_icp = refinement == StoredRefinement::kRefined;

@@ -10,6 +10,7 @@
 #include <algorithm>
 #include <array>
 #include <bit>
+#include <cmath>
 #include <cstring>
 #include <stdexcept>
 #include <string_view>
@@ -176,7 +177,7 @@ void write_keyframe(ByteWriter& out, int slot, const StoredKeyframe& keyframe) {
   }
 
   // What KeyframeStore::copy_features keeps: keypoints, descriptors and the thinned cloud.
-  const geometry::GeometricFeatures& geometric = keyframe.geometric;
+  const StoredGeometry& geometric = keyframe.geometric;
   out.f32(geometric.resolution_m);
   out.f32(geometric.voxel_leaf_m);
   out.u32(static_cast<std::uint32_t>(geometric.count));
@@ -185,13 +186,14 @@ void write_keyframe(ByteWriter& out, int slot, const StoredKeyframe& keyframe) {
     out.vec3(geometric.points_cam[k]);
     out.vec3(geometric.normals[k]);
     out.f32(geometric.sigma_m[k]);
-    for (int d = 0; d < geometry::kShotSize; ++d) out.f32(geometric.descriptor(i)[d]);
+    out.f32(geometric.scales[k]);
+    out.bytes(geometric.codes.data() + k * geometry::kShotSize, geometry::kShotSize);
   }
   out.u32(static_cast<std::uint32_t>(geometric.cloud_count));
   for (int i = 0; i < geometric.cloud_count; ++i) {
     const auto k = static_cast<std::size_t>(i);
     out.vec3(geometric.cloud_points[k]);
-    out.vec3(geometric.cloud_normals[k]);
+    for (const std::int16_t code : geometric.cloud_normals[k]) out.u16(static_cast<std::uint16_t>(code));
     out.f32(geometric.cloud_pixels[k].x());
     out.f32(geometric.cloud_pixels[k].y());
     out.f32(geometric.cloud_curvature[k]);
@@ -208,8 +210,12 @@ void write_keyframe(ByteWriter& out, int slot, const StoredKeyframe& keyframe) {
 }
 
 constexpr std::size_t kPhotometricRecordBytes = 5 * 4 + 2 * 4 + kDescriptorBytes + 3 * 4 + 4;
-constexpr std::size_t kGeometricRecordBytes = (3 + 3 + 1 + geometry::kShotSize) * 4;
-constexpr std::size_t kCloudRecordBytes = (3 + 3 + 2 + 1) * 4;
+constexpr std::size_t kGeometricRecordBytes = (3 + 3 + 1 + 1) * 4 + geometry::kShotSize;
+// Format version 1 kept each SHOT value as a float.
+constexpr std::size_t kGeometricRecordBytesV1 = (3 + 3 + 1 + geometry::kShotSize) * 4;
+constexpr std::size_t kCloudRecordBytes = (3 + 2 + 1) * 4 + 3 * 2;
+// Format version 1 kept each cloud normal as three floats.
+constexpr std::size_t kCloudRecordBytesV1 = (3 + 3 + 2 + 1) * 4;
 constexpr std::size_t kPointRecordBytes = 3 * 4 + 3;
 
 /// The slot a key-frame section is for, without reading the rest.
@@ -222,7 +228,7 @@ int keyframe_slot(ByteReader& in, const KeyframeStore& store) {
   return static_cast<int>(slot);
 }
 
-void read_keyframe(ByteReader& in, KeyframeStore& store, const graph::PoseGraph& graph) {
+void read_keyframe(ByteReader& in, KeyframeStore& store, const graph::PoseGraph& graph, std::uint32_t version) {
   const int slot = keyframe_slot(in, store);
   if (store.slot(slot).used) in.fail("key-frame slot " + std::to_string(slot) + " appears twice");
   store.occupy(slot);
@@ -278,26 +284,43 @@ void read_keyframe(ByteReader& in, KeyframeStore& store, const graph::PoseGraph&
   }
   photometric.descriptors = photometric.descriptor_storage.rowRange(0, static_cast<int>(orb));
 
-  geometry::GeometricFeatures& geometric = keyframe.geometric;
+  StoredGeometry& geometric = keyframe.geometric;
   geometric.count = 0;
   geometric.cloud_count = 0;
   geometric.resolution_m = in.f32();
   geometric.voxel_leaf_m = in.f32();
-  const std::uint32_t shot = in.count(kGeometricRecordBytes, static_cast<std::size_t>(geometric.capacity()),
-                                      "geometric keypoints in a key-frame", "geometry.max_keypoints");
+  const std::uint32_t shot =
+      in.count(version == 1 ? kGeometricRecordBytesV1 : kGeometricRecordBytes,
+               static_cast<std::size_t>(geometric.capacity()), "geometric keypoints in a key-frame", "geometry.max_keypoints");
   for (std::uint32_t i = 0; i < shot; ++i) {
     geometric.points_cam[i] = in.vec3();
     geometric.normals[i] = in.vec3();
     geometric.sigma_m[i] = in.f32();
-    float* descriptor = geometric.descriptors.data() + static_cast<std::ptrdiff_t>(i) * geometry::kShotSize;
-    for (int d = 0; d < geometry::kShotSize; ++d) descriptor[d] = in.f32();
+    std::uint8_t* codes = geometric.codes.data() + static_cast<std::ptrdiff_t>(i) * geometry::kShotSize;
+    if (version == 1) {
+      std::array<float, geometry::kShotSize> values{};
+      for (float& value : values) value = in.f32();
+      geometric.scales[i] = StoredGeometry::encode(values.data(), codes);
+    } else {
+      geometric.scales[i] = in.f32();
+      if (!(geometric.scales[i] >= 0.0F) || !std::isfinite(geometric.scales[i])) {
+        in.fail("key-frame slot " + std::to_string(slot) + ": SHOT descriptor " + std::to_string(i) + " has scale " +
+                std::to_string(geometric.scales[i]));
+      }
+      std::memcpy(codes, in.take(geometry::kShotSize), geometry::kShotSize);
+    }
   }
   geometric.count = static_cast<int>(shot);
-  const std::uint32_t cloud = in.count(kCloudRecordBytes, geometric.cloud_points.size(),
-                                       "sampled-cloud points in a key-frame", "the key-frame cloud's capacity");
+  const std::uint32_t cloud = in.count(version == 1 ? kCloudRecordBytesV1 : kCloudRecordBytes,
+                                       geometric.cloud_points.size(), "sampled-cloud points in a key-frame",
+                                       "the key-frame cloud's capacity");
   for (std::uint32_t i = 0; i < cloud; ++i) {
     geometric.cloud_points[i] = in.vec3();
-    geometric.cloud_normals[i] = in.vec3();
+    if (version == 1) {
+      geometric.cloud_normals[i] = StoredGeometry::encode_normal(in.vec3());
+    } else {
+      for (std::int16_t& code : geometric.cloud_normals[i]) code = static_cast<std::int16_t>(in.u16());
+    }
     geometric.cloud_pixels[i].x() = in.f32();
     geometric.cloud_pixels[i].y() = in.f32();
     geometric.cloud_curvature[i] = in.f32();
@@ -635,7 +658,7 @@ MapFileInfo decode_map(std::span<const unsigned char> bytes, const std::string& 
       for_each_section(body, header.position(), false, [&](const SectionView& section) {
         if (section.tag != static_cast<std::uint32_t>(MapSection::kKeyframe)) return;
         ByteReader in(section.payload, context(section));
-        read_keyframe(in, into.store, into.graph);
+        read_keyframe(in, into.store, into.graph, info.format_version);
         if (in.left() != 0) in.fail(std::to_string(in.left()) + " bytes left over");
       });
     } catch (...) {

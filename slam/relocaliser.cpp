@@ -9,7 +9,9 @@ namespace rankslam::slam {
 
 Relocaliser::Relocaliser(const SlamConfig& config, const KeyframeStore& store, Registrar& registrar,
                          geometry::GeometricFrontend& geometric)
-    : config_(config), store_(store), registrar_(registrar), geometric_(geometric) {}
+    : config_(config), store_(store), registrar_(registrar), geometric_(geometric) {
+  if (store_.capacity() > 0) decoded_ = store_.slot(0).geometric.make_decoded();
+}
 
 void Relocaliser::reset() {
   cursor_ = 0;
@@ -64,20 +66,20 @@ bool Relocaliser::search(const TrackedFeatures& frame, double threshold, FrameRe
 
 void Relocaliser::refine(const TrackedFeatures& frame, Relocalisation& found, FrameResult& result) {
   const StoredKeyframe& stored = store_.slot(found.slot);
-  if (frame.geometric == nullptr || stored.geometric.count == 0) return;
+  if (frame.geometric == nullptr || stored.geometric.count == 0 || !stored.geometric.decode(decoded_)) return;
   // The registrar holds the last key-frame tried; the found one's registration is made again
   // (the same estimate) for the refinement to start from.
   FrameResult scratch;
   scratch.times = result.times;
   const MotionEstimate estimate = registrar_.register_frames(
       stored.photometric, stored.velocity, *frame.photometric, frame.velocity, scratch, Eigen::Isometry3d::Identity(),
-      Eigen::Isometry3d::Identity(), &stored.geometric, frame.geometric, /*refine=*/false);
+      Eigen::Isometry3d::Identity(), &decoded_, frame.geometric, /*refine=*/false);
   result.times = scratch.times;
   if (!estimate.ok || !lie::is_finite_rigid(estimate.T_target_source)) return;
   Eigen::Isometry3d T_stored_current = estimate.T_target_source;
   // Where ICP cannot fix what the features leave loose, the features' estimate stands: tracking
   // from it is better than staying lost, and loop closures correct it.
-  if (refine_on_stored_cloud(registrar_, geometric_, config_, config_.loop.icp_above_rotation_sigma_deg, stored.geometric,
+  if (refine_on_stored_cloud(registrar_, geometric_, config_, config_.loop.icp_above_rotation_sigma_deg, decoded_,
                              *frame.geometric, T_stored_current) == StoredRefinement::kRefined) {
     found.T_world_cam = lie::renormalised(stored.T_world_cam * T_stored_current);
   }
@@ -97,12 +99,13 @@ bool Relocaliser::usable(int slot, const PhotometricFeatures& features) const {
 bool Relocaliser::try_keyframe(int slot, const TrackedFeatures& frame, double threshold, Relocalisation& found,
                                FrameResult& result) {
   const StoredKeyframe& stored = store_.slot(slot);
-  const bool with_geometry = frame.geometric != nullptr && stored.geometric.count > 0;
+  const bool with_geometry =
+      frame.geometric != nullptr && stored.geometric.count > 0 && stored.geometric.decode(decoded_);
   FrameResult scratch;
   scratch.times = result.times;
   const MotionEstimate estimate = registrar_.register_frames(
       stored.photometric, stored.velocity, *frame.photometric, frame.velocity, scratch, Eigen::Isometry3d::Identity(),
-      Eigen::Isometry3d::Identity(), with_geometry ? &stored.geometric : nullptr,
+      Eigen::Isometry3d::Identity(), with_geometry ? &decoded_ : nullptr,
       with_geometry ? frame.geometric : nullptr, /*refine=*/false);
   result.times = scratch.times;
   if (!estimate.ok || !lie::is_finite_rigid(estimate.T_target_source)) return false;

@@ -72,19 +72,22 @@ inline void fill_tiny_map(TinyMap& map) {
     }
     photometric.descriptors = photometric.descriptor_storage.rowRange(0, orb);
     photometric.source = slot == 1 ? slam::ImageSource::kInfrared : slam::ImageSource::kColour;
-    geometry::GeometricFeatures& geometric = keyframe.geometric;
+    slam::StoredGeometry& geometric = keyframe.geometric;
     geometric.count = 2;
     for (int i = 0; i < geometric.count; ++i) {
       const auto k = static_cast<std::size_t>(i);
       geometric.points_cam[k] = Eigen::Vector3f(0.5F * i, 0.25F, 2.0F);
       geometric.normals[k] = Eigen::Vector3f(0.0F, 0.0F, -1.0F);
       geometric.sigma_m[k] = 0.01F;
-      for (int d = 0; d < geometry::kShotSize; ++d) geometric.descriptors[k * geometry::kShotSize + static_cast<std::size_t>(d)] = 0.001F * d;
+      for (int d = 0; d < geometry::kShotSize; ++d) {
+        geometric.codes[k * geometry::kShotSize + static_cast<std::size_t>(d)] = static_cast<std::uint8_t>((d + slot) % 256);
+      }
+      geometric.scales[k] = 0.001F * static_cast<float>(i + 1);
     }
     geometric.cloud_count = 3;
     for (std::size_t i = 0; i < 3; ++i) {
       geometric.cloud_points[i] = Eigen::Vector3f(0.1F, 0.2F * static_cast<float>(i), 1.5F);
-      geometric.cloud_normals[i] = Eigen::Vector3f(0.0F, 1.0F, 0.0F);
+      geometric.cloud_normals[i] = slam::StoredGeometry::encode_normal(Eigen::Vector3f(0.0F, 1.0F, 0.0F));
       geometric.cloud_pixels[i] = Eigen::Vector2f(320.5F, 240.0F + static_cast<float>(i));
       geometric.cloud_curvature[i] = 0.02F;
     }

@@ -114,7 +114,8 @@ TEST(MapFile, TinyMapRoundTripsFieldByFieldAndByteForByte) {
     EXPECT_EQ(cv::norm(a.photometric.descriptors, b.photometric.descriptors, cv::NORM_HAMMING), 0.0);
     ASSERT_EQ(a.geometric.count, b.geometric.count);
     ASSERT_EQ(a.geometric.cloud_count, b.geometric.cloud_count);
-    EXPECT_EQ(a.geometric.descriptors, b.geometric.descriptors);
+    EXPECT_EQ(a.geometric.codes, b.geometric.codes);
+    EXPECT_EQ(a.geometric.scales, b.geometric.scales);
     EXPECT_EQ(a.geometric.points_cam, b.geometric.points_cam);
     EXPECT_EQ(a.geometric.cloud_pixels, b.geometric.cloud_pixels);
     EXPECT_EQ(a.geometric.voxel_leaf_m, b.geometric.voxel_leaf_m);
@@ -226,8 +227,8 @@ TEST(MapFile, RefusesEveryFlippedByteOfTheHeaderAndOfTheRest) {
 
 TEST(MapFile, NamesAWrongVersionAndAWrongMagic) {
   std::vector<unsigned char> bytes = tiny_map_bytes();
-  bytes[8] = 2;
-  EXPECT_EQ(refusal(bytes), "map file tiny.map: unsupported format version 2 (this build reads 1 to 1)");
+  bytes[8] = 3;
+  EXPECT_EQ(refusal(bytes), "map file tiny.map: unsupported format version 3 (this build reads 1 to 2)");
   const std::string text = "P5\n640 480\n255\n";
   EXPECT_EQ(refusal(std::span(reinterpret_cast<const unsigned char*>(text.data()), text.size())),
             "map file tiny.map: not a rankslam map file (wrong magic)");
@@ -327,6 +328,42 @@ TEST(MapFile, DigestsFollowTheNumbersNotTheCalibrationsSource) {
   const std::uint32_t config_before = config_digest(config);
   config.loop.search_radius_m += 0.5;
   EXPECT_NE(config_digest(config), config_before);
+}
+
+// A map of format version 1 (SHOT values as floats; the fuzz target's first seed, written before
+// version 2) loads, its values encoded as the store keeps them, and saves as version 2.
+TEST(MapFile, AVersionOneMapLoadsWithItsShotValuesEncoded) {
+  const fs::path seed = fs::path(RANKSLAM_SOURCE_DIR) / "test/fuzz/corpus/map_file/tiny.map";
+  const std::vector<unsigned char> bytes = read_bytes(seed);
+  ASSERT_FALSE(bytes.empty()) << seed;
+  TinyMap loaded;
+  const MapFileInfo info = decode_map(bytes, "tiny.map", kDigests, {loaded.store, loaded.graph, loaded.threshold});
+  EXPECT_EQ(info.format_version, 1U);
+  ASSERT_EQ(loaded.store.size(), 3);
+  // Version 1's tiny map held 0.001 × d in every descriptor's value d.
+  TinyMap expected;
+  fill_tiny_map(expected);
+  std::vector<float> values(geometry::kShotSize);
+  for (const int slot : {0, 1, 3}) {
+    const StoredGeometry& geometric = loaded.store.slot(slot).geometric;
+    ASSERT_EQ(geometric.count, 2) << "slot " << slot;
+    EXPECT_EQ(geometric.points_cam, expected.store.slot(slot).geometric.points_cam);
+    for (int k = 0; k < geometric.count; ++k) {
+      const float scale = geometric.scales[static_cast<std::size_t>(k)];
+      StoredGeometry::decode(geometric.codes.data() + static_cast<std::ptrdiff_t>(k) * geometry::kShotSize, scale,
+                             values.data());
+      for (int d = 0; d < geometry::kShotSize; ++d) {
+        ASSERT_NEAR(values[static_cast<std::size_t>(d)], 0.001F * static_cast<float>(d), 0.5F * scale * 1.0001F);
+      }
+    }
+  }
+  std::vector<unsigned char> again;
+  encode_map(loaded.store, loaded.graph, loaded.threshold, kDigests, again);
+  TinyMap reloaded;
+  EXPECT_EQ(decode_map(again, "tiny.map", kDigests, {reloaded.store, reloaded.graph, reloaded.threshold}).format_version,
+            kMapFormatVersion);
+  EXPECT_EQ(reloaded.store.slot(3).geometric.codes, loaded.store.slot(3).geometric.codes);
+  EXPECT_LT(again.size(), bytes.size());
 }
 
 // The fuzz target's seed (test/fuzz/corpus/map_file): RANKSLAM_WRITE_MAP_SEED=<file> writes it.

@@ -2,7 +2,11 @@
 
 #include <gtest/gtest.h>
 
+#include <algorithm>
 #include <cmath>
+#include <limits>
+#include <random>
+#include <vector>
 
 namespace rankslam::slam {
 namespace {
@@ -87,7 +91,7 @@ TEST(KeyframeStore, CopiesFeaturesIntoTheSlotsPreallocatedMemory) {
     geometric.cloud_pixels[k] = Eigen::Vector2f(static_cast<float>(10 * i), 5.0F);
     geometric.cloud_curvature[k] = 0.001F * static_cast<float>(i);
   }
-  geometry::GeometricFeatures& stored = store.slot(0).geometric;
+  StoredGeometry& stored = store.slot(0).geometric;
   KeyframeStore::copy_features(geometric, stored);
   EXPECT_EQ(stored.count, 4);  // capped at the slot's capacity
   EXPECT_FLOAT_EQ(stored.voxel_leaf_m, 0.03F);
@@ -98,8 +102,69 @@ TEST(KeyframeStore, CopiesFeaturesIntoTheSlotsPreallocatedMemory) {
     EXPECT_FLOAT_EQ(stored.cloud_points[k].x(), static_cast<float>(3 * i));
     EXPECT_FLOAT_EQ(stored.cloud_pixels[k].x(), static_cast<float>(30 * i));
     EXPECT_FLOAT_EQ(stored.cloud_curvature[k], 0.003F * static_cast<float>(i));
-    EXPECT_FLOAT_EQ(stored.cloud_normals[k].z(), -1.0F);
+    EXPECT_FLOAT_EQ(StoredGeometry::decode_normal(stored.cloud_normals[k]).z(), -1.0F);
   }
+}
+
+// SHOT-like descriptors (non-negative, unit norm, many empty bins) through the store's codes.
+TEST(StoredGeometry, ShotCodesKeepEveryValueWithinHalfAStepAndReencodeToThemselves) {
+  std::mt19937 random(11);
+  std::uniform_real_distribution<float> uniform(0.0F, 1.0F);
+  std::vector<float> values(geometry::kShotSize);
+  std::vector<float> decoded(geometry::kShotSize);
+  std::vector<std::uint8_t> codes(geometry::kShotSize);
+  std::vector<std::uint8_t> again(geometry::kShotSize);
+  for (int trial = 0; trial < 2000; ++trial) {
+    float norm = 0.0F;
+    for (float& value : values) {
+      value = uniform(random) < 0.6F ? 0.0F : std::pow(uniform(random), 3.0F);
+      norm += value * value;
+    }
+    if (norm == 0.0F) continue;
+    for (float& value : values) value /= std::sqrt(norm);
+    const float scale = StoredGeometry::encode(values.data(), codes.data());
+    ASSERT_GT(scale, 0.0F);
+    StoredGeometry::decode(codes.data(), scale, decoded.data());
+    float largest = 0.0F;
+    for (int d = 0; d < geometry::kShotSize; ++d) {
+      const auto k = static_cast<std::size_t>(d);
+      largest = std::max(largest, values[k]);
+      ASSERT_LE(std::abs(decoded[k] - values[k]), 0.5F * scale * 1.0001F) << "trial " << trial << ", value " << d;
+    }
+    EXPECT_LE(scale, largest / 255.0F * 1.0001F);
+    // A map saved, loaded and saved again writes the same codes and scale.
+    ASSERT_EQ(StoredGeometry::encode(decoded.data(), again.data()), scale) << "trial " << trial;
+    ASSERT_EQ(again, codes) << "trial " << trial;
+  }
+  // What is not a positive finite value codes as 0; nothing positive gives scale 0.
+  std::fill(values.begin(), values.end(), 0.0F);
+  values[0] = -1.0F;
+  values[1] = std::numeric_limits<float>::quiet_NaN();
+  values[2] = std::numeric_limits<float>::infinity();
+  EXPECT_EQ(StoredGeometry::encode(values.data(), codes.data()), 0.0F);
+  EXPECT_EQ(std::count(codes.begin(), codes.end(), 0), geometry::kShotSize);
+  values[3] = 0.5F;
+  const float scale = StoredGeometry::encode(values.data(), codes.data());
+  EXPECT_EQ(codes[3], 255);
+  EXPECT_EQ(codes[0] + codes[1] + codes[2], 0);
+  EXPECT_FLOAT_EQ(255.0F * scale, 0.5F);
+}
+
+TEST(StoredGeometry, NormalCodesKeepEachComponentWithinHalfAStep) {
+  std::mt19937 random(5);
+  std::normal_distribution<float> gauss(0.0F, 1.0F);
+  for (int trial = 0; trial < 10000; ++trial) {
+    const Eigen::Vector3f normal = Eigen::Vector3f(gauss(random), gauss(random), gauss(random)).normalized();
+    const auto codes = StoredGeometry::encode_normal(normal);
+    const Eigen::Vector3f back = StoredGeometry::decode_normal(codes);
+    ASSERT_LE((back - normal).cwiseAbs().maxCoeff(), 0.5F / 32767.0F * 1.001F) << "trial " << trial;
+    ASSERT_EQ(StoredGeometry::encode_normal(back), codes) << "trial " << trial;
+  }
+  const Eigen::Vector3f odd(std::numeric_limits<float>::quiet_NaN(), 2.0F, -std::numeric_limits<float>::infinity());
+  const auto codes = StoredGeometry::encode_normal(odd);
+  EXPECT_EQ(codes[0], 0);
+  EXPECT_EQ(codes[1], 32767);
+  EXPECT_EQ(codes[2], 0);
 }
 
 TEST(AdaptiveLoopThreshold, StartsAtTheInitialValueThenFollowsMeanMinusDeviation) {

@@ -11,6 +11,7 @@
 
 #include <Eigen/Geometry>
 
+#include <array>
 #include <cstdint>
 #include <span>
 #include <vector>
@@ -25,6 +26,48 @@ struct KeyframePoint {
   std::uint8_t red = 0;
   /// Whether the live map took it (it refuses points once full): only those are taken out again.
   bool in_map = false;
+};
+
+/// A key-frame's geometric features as the store keeps them: keypoints and the thinned cloud as
+/// extracted, but each SHOT descriptor as one byte a value with a scale (value ≈ code × scale,
+/// the scale 1/255 of the descriptor's largest value: a quarter of the floats' memory, every
+/// value within half a step) and each cloud normal as three 16-bit codes (component × 32767,
+/// within 1.6e-5). Registrations read them decoded (decode()).
+struct StoredGeometry {
+  std::vector<Eigen::Vector3f> points_cam;
+  std::vector<Eigen::Vector3f> normals;
+  std::vector<float> sigma_m;
+  std::vector<std::uint8_t> codes;  ///< count × kShotSize
+  std::vector<float> scales;        ///< one per descriptor
+  int count = 0;
+  std::vector<Eigen::Vector3f> cloud_points;
+  std::vector<std::array<std::int16_t, 3>> cloud_normals;
+  std::vector<Eigen::Vector2f> cloud_pixels;
+  std::vector<float> cloud_curvature;
+  int cloud_count = 0;
+  float resolution_m = 0.0F;
+  float voxel_leaf_m = 0.0F;
+
+  /// Set-up (allocates): room for `capacity` keypoints and `cloud_capacity` cloud points.
+  void reserve(int capacity, int cloud_capacity);
+  [[nodiscard]] int capacity() const { return static_cast<int>(sigma_m.size()); }
+  [[nodiscard]] int cloud_capacity() const { return static_cast<int>(cloud_points.size()); }
+  /// Set-up (allocates): features with room to decode these into.
+  [[nodiscard]] geometry::GeometricFeatures make_decoded() const;
+  /// The features as registrations take them, SHOT values restored from their codes (no
+  /// allocation). False, `to` left empty, where `to` lacks the room.
+  bool decode(geometry::GeometricFeatures& to) const;
+  /// Copies another store's (no allocation; the room must be the same).
+  void assign(const StoredGeometry& from);
+
+  /// One descriptor's codes for its `kShotSize` values; returns the scale. Values that are not
+  /// positive and finite are 0 (SHOT's are histograms); the scale is chosen so that decoding and
+  /// encoding again gives the same codes and scale.
+  static float encode(const float* values, std::uint8_t* codes);
+  static void decode(const std::uint8_t* codes, float scale, float* values);
+  /// A unit normal's codes (components clamped to [−1, 1]; not finite: 0) and back.
+  static std::array<std::int16_t, 3> encode_normal(const Eigen::Vector3f& normal);
+  static Eigen::Vector3f decode_normal(const std::array<std::int16_t, 3>& codes);
 };
 
 struct StoredKeyframe {
@@ -44,7 +87,7 @@ struct StoredKeyframe {
   /// correction in loop-closure registrations, as in tracking.
   Eigen::Matrix<double, 6, 1> velocity = Eigen::Matrix<double, 6, 1>::Zero();
   PhotometricFeatures photometric;
-  geometry::GeometricFeatures geometric;
+  StoredGeometry geometric;
   std::vector<KeyframePoint> points;
   int point_count = 0;
   /// The pose the points were put into the live map at (MapBuilder), to take them out again.
@@ -88,7 +131,7 @@ class KeyframeStore {
   /// Copies features into a slot (no allocation: the slot was sized at set-up; features beyond
   /// its capacity are dropped).
   static void copy_features(const PhotometricFeatures& from, PhotometricFeatures& to);
-  static void copy_features(const geometry::GeometricFeatures& from, geometry::GeometricFeatures& to);
+  static void copy_features(const geometry::GeometricFeatures& from, StoredGeometry& to);
 
  private:
   std::vector<StoredKeyframe> slots_;

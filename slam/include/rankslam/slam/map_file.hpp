@@ -26,7 +26,7 @@
 namespace rankslam::slam {
 
 /// Format version written; a reader takes versions 1 to this one.
-inline constexpr std::uint32_t kMapFormatVersion = 1;
+inline constexpr std::uint32_t kMapFormatVersion = 2;
 /// Largest map file read: a full default store (256 key-frames of ORB, SHOT and cloud features)
 /// takes a few hundred MiB at most.
 inline constexpr std::size_t kMaxMapFileBytes = std::size_t{2} << 30U;

@@ -60,6 +60,8 @@ class Relocaliser {
   const KeyframeStore& store_;
   Registrar& registrar_;
   geometry::GeometricFrontend& geometric_;
+  /// The key-frame being registered, decoded from the store (StoredGeometry::decode).
+  geometry::GeometricFeatures decoded_;
   int cursor_ = 0;
   /// The latest frames' agreeing relocalisations; the last one's pose and key-frame.
   int agreeing_ = 0;
