@@ -13,7 +13,7 @@ DepthCameraModel::DepthCameraModel(const hal::CameraCalibration& calibration, do
       depth_noise_per_m_(depth_noise_per_m),
       metres_per_unit_(static_cast<float>(1.0 / depth_scale)) {
   const std::size_t count = static_cast<std::size_t>(width_) * static_cast<std::size_t>(height_);
-  rays_.resize(count);
+  auto rays = std::make_shared<std::vector<Eigen::Vector2f>>(count);
   std::vector<cv::Point2f> pixels(count);
   for (int v = 0; v < height_; ++v) {
     for (int u = 0; u < width_; ++u) {
@@ -34,7 +34,9 @@ DepthCameraModel::DepthCameraModel(const hal::CameraCalibration& calibration, do
     cv::undistortPoints(pixels, normalised, K, d, cv::noArray(), cv::noArray(),
                         cv::TermCriteria(cv::TermCriteria::COUNT | cv::TermCriteria::EPS, 20, 1e-6));
   }
-  for (std::size_t i = 0; i < count; ++i) rays_[i] = Eigen::Vector2f(normalised[i].x, normalised[i].y);
+  for (std::size_t i = 0; i < count; ++i) (*rays)[i] = Eigen::Vector2f(normalised[i].x, normalised[i].y);
+  ray_data_ = rays->data();
+  rays_ = std::move(rays);
 }
 
 }  // namespace rankslam::camera

@@ -5,13 +5,15 @@
 #include <Eigen/Core>
 
 #include <algorithm>
+#include <memory>
 #include <vector>
 
 namespace rankslam::camera {
 
 /// Back-projection for the RGB-D camera. Depth is registered to the (distorted) colour image, so
 /// a pixel's ray comes from undoing the lens distortion; a table built at set-up holds the
-/// normalised undistorted coordinates of every pixel, making back-projection a lookup.
+/// normalised undistorted coordinates of every pixel, making back-projection a lookup. Copies
+/// share the table (it never changes): each part keeping its own model costs no memory.
 class DepthCameraModel {
  public:
   DepthCameraModel() = default;
@@ -30,7 +32,7 @@ class DepthCameraModel {
 
   /// Normalised undistorted ray (x/z, y/z) through pixel (u, v), both integers in range.
   [[nodiscard]] Eigen::Vector2f ray(int u, int v) const {
-    return rays_[static_cast<std::size_t>(v) * static_cast<std::size_t>(width_) + static_cast<std::size_t>(u)];
+    return ray_data_[static_cast<std::size_t>(v) * static_cast<std::size_t>(width_) + static_cast<std::size_t>(u)];
   }
   /// Ray through a sub-pixel position, bilinear between the table's pixels; (u, v) must lie in
   /// [0, width - 1] × [0, height - 1].
@@ -57,7 +59,8 @@ class DepthCameraModel {
   double depth_scale_ = 5000.0;
   double depth_noise_per_m_ = 0.0;
   float metres_per_unit_ = 1.0F / 5000.0F;
-  std::vector<Eigen::Vector2f> rays_;
+  std::shared_ptr<const std::vector<Eigen::Vector2f>> rays_;
+  const Eigen::Vector2f* ray_data_ = nullptr;  ///< rays_->data(), held for the lookups
 };
 
 }  // namespace rankslam::camera
