@@ -367,7 +367,7 @@ struct SlamConfig {
   // inliers: a lone wall at 1 m gives thousands (docs/results.md §5).
   int min_icp_inliers = 300;
   // Back-end (docs/methods.md §8, §10–§11): key-frame store, loop closure, pose graph.
-  // Stored key-frames, about 1 MB each; when full, one far from the camera with the fewest loop
+  // Stored key-frames, about 0.5 MB each; when full, one far from the camera with the fewest loop
   // closures is retired (KeyframeStore::retirement_candidate).
   int keyframe_capacity = 128;
   // Points (about 36 bytes each) a key-frame keeps to ICP-refine closures on weak photometric
@@ -468,7 +468,7 @@ struct SlamConfig {
     wheels.visit_parameters(visit);
     visit("min_icp_inliers", min_icp_inliers, 3, 1000000, "",
           "an ICP-refined registration with fewer feature inliers than min_inliers needs this many point-to-plane inliers");
-    visit("keyframe_capacity", keyframe_capacity, 2, 65536, "", "key-frames the back-end stores (about 1 MB each)");
+    visit("keyframe_capacity", keyframe_capacity, 2, 65536, "", "key-frames the back-end stores (about 0.5 MB each)");
     visit("keyframe_cloud_points", keyframe_cloud_points, 0, 1000000, "",
           "sampled points each key-frame keeps for ICP-refined loop closures (0: none)");
     visit("threads", threads, 1, 8, "", "threads sharing the per-frame loops, the tracking thread included");
