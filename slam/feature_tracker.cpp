@@ -29,7 +29,6 @@ FeatureTracker::FeatureTracker(const TrackerParts& parts, bool fused)
       config_(parts.config),
       fused_(fused),
       orb_(config_, parts.camera),
-      infrared_orb_(config_, parts.camera, config_.ir_orb_fast_threshold),
       motion_(config_) {
   const auto capacity = static_cast<std::size_t>(config_.orb_features) * 2;
   for (auto& tracked : frames_) tracked.features.reserve(capacity);
@@ -63,7 +62,7 @@ void FeatureTracker::extract(const hal::RgbdFrame& frame, const cv::Mat* image, 
   TrackedFrame& tracked = frames_[static_cast<std::size_t>(current_)];
   const auto extract_photometric = [&] {
     if (image != nullptr && have_depth) {
-      orb_for(source).extract(*image, frame.depth, tracked.features);
+      orb_.extract(*image, frame.depth, tracked.features, source);
     } else {
       tracked.features.clear();
     }
@@ -216,7 +215,7 @@ const FeatureTracker::TrackedFrame* FeatureTracker::register_current(const hal::
     } else if (const cv::Mat* bridge_image = parts_.images.feature_image(frame, reference.features.source);
                bridge_image != nullptr) {
       const auto stage_start = SteadyClock::now();
-      orb_for(reference.features.source).extract(*bridge_image, frame.depth, bridge_);
+      orb_.extract(*bridge_image, frame.depth, bridge_, reference.features.source);
       result.times.ms[kFeatures] += elapsed_ms(stage_start);
       const MotionEstimate estimate = parts_.registrar.register_frames(
           reference.features, reference.velocity, bridge_, tracked.velocity, result,

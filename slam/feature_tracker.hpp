@@ -66,15 +66,11 @@ class FeatureTracker final : public Tracker {
   void chain_odom_covariance(const TrackedFrame* target, const nav::MotionPrior* prior, const FrameResult& result);
   /// Dense refinement of the accepted registration of the current frame against `target`.
   void refine_dense(const TrackedFrame& target, FrameResult& result);
-  [[nodiscard]] OrbFrontend& orb_for(ImageSource source) {
-    return source == ImageSource::kInfrared ? infrared_orb_ : orb_;
-  }
 
   TrackerParts parts_;
   const SlamConfig& config_;
   const bool fused_;
   OrbFrontend orb_;
-  OrbFrontend infrared_orb_;
   MotionModel motion_;
   std::optional<dense::DenseAligner> dense_;  ///< Set when config.dense_refinement is 1.
 

@@ -141,6 +141,8 @@ OrbExtractor::OrbExtractor(const OrbExtractorSettings& settings) : settings_(set
   set_up(settings.width, settings.height);
 }
 
+void OrbExtractor::set_fast_threshold(int threshold) { settings_.fast_threshold = std::clamp(threshold, 1, 254); }
+
 void OrbExtractor::set_up(int width, int height) {
   settings_.width = width;
   settings_.height = height;

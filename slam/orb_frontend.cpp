@@ -25,7 +25,7 @@ void PhotometricFeatures::clear() {
 
 namespace {
 
-OrbExtractorSettings extractor_settings(const SlamConfig& config, const camera::DepthCameraModel& camera, int fast_threshold) {
+OrbExtractorSettings extractor_settings(const SlamConfig& config, const camera::DepthCameraModel& camera) {
   OrbExtractorSettings settings;
   // With OpenCV's ORB in its place the extractor is left without image buffers.
   const bool used = config.orb_implementation == OrbImplementation::kFixedMemory;
@@ -34,20 +34,22 @@ OrbExtractorSettings extractor_settings(const SlamConfig& config, const camera::
   settings.max_features = config.orb_features;
   settings.scale_factor = static_cast<float>(config.orb_scale_factor);
   settings.levels = config.orb_levels;
-  settings.fast_threshold = fast_threshold > 0 ? fast_threshold : config.orb_fast_threshold;
+  settings.fast_threshold = config.orb_fast_threshold;
   return settings;
 }
 
 }  // namespace
 
-OrbFrontend::OrbFrontend(const SlamConfig& config, const camera::DepthCameraModel& camera, int fast_threshold)
+OrbFrontend::OrbFrontend(const SlamConfig& config, const camera::DepthCameraModel& camera)
     : camera_(camera),
       min_depth_m_(static_cast<float>(config.min_depth_m)),
       max_depth_m_(static_cast<float>(config.max_depth_m)),
       depth_noise_per_m_(static_cast<float>(camera.depth_noise_per_m() + config.keypoint_depth_noise_per_m)),
       keypoint_sigma_px_(static_cast<float>(config.keypoint_sigma_px)),
       scale_factor_(static_cast<float>(config.orb_scale_factor)),
-      extractor_(extractor_settings(config, camera, fast_threshold)) {
+      colour_fast_threshold_(config.orb_fast_threshold),
+      infrared_fast_threshold_(config.ir_orb_fast_threshold > 0 ? config.ir_orb_fast_threshold : config.orb_fast_threshold),
+      extractor_(extractor_settings(config, camera)) {
   if (config.ros2d_keypoints != 0 && config.orb_implementation == OrbImplementation::kFixedMemory) {
     features::Ros2dOptions options;
     // Only the octaves the descriptor pyramid spans: a coarser feature would be described at
@@ -64,15 +66,17 @@ OrbFrontend::OrbFrontend(const SlamConfig& config, const camera::DepthCameraMode
   }
   if (config.orb_implementation == OrbImplementation::kOpenCv) {
     opencv_orb_ = cv::ORB::create(config.orb_features, static_cast<float>(config.orb_scale_factor), config.orb_levels, 31,
-                                  0, 2, cv::ORB::HARRIS_SCORE, 31,
-                                  fast_threshold > 0 ? fast_threshold : config.orb_fast_threshold);
+                                  0, 2, cv::ORB::HARRIS_SCORE, 31, config.orb_fast_threshold);
     opencv_keypoints_.reserve(static_cast<std::size_t>(config.orb_features) * 2);
   }
 }
 
-void OrbFrontend::extract(const cv::Mat& gray, const cv::Mat& depth, PhotometricFeatures& features) {
+void OrbFrontend::extract(const cv::Mat& gray, const cv::Mat& depth, PhotometricFeatures& features,
+                          ImageSource source) {
   features.clear();
+  const int fast_threshold = source == ImageSource::kInfrared ? infrared_fast_threshold_ : colour_fast_threshold_;
   if (opencv_orb_) {
+    opencv_orb_->setFastThreshold(fast_threshold);
     opencv_keypoints_.clear();
     opencv_orb_->detectAndCompute(gray, cv::noArray(), opencv_keypoints_, opencv_descriptors_);
   } else if (ros2d_) {
@@ -81,8 +85,9 @@ void OrbFrontend::extract(const cv::Mat& gray, const cv::Mat& depth, Photometric
         !extractor_.describe(gray, ros2d_keypoints_, static_cast<float>(2.0 * ros2d_->options().sigma0))) {
       return;
     }
-  } else if (!extractor_.extract(gray)) {
-    return;
+  } else {
+    extractor_.set_fast_threshold(fast_threshold);
+    if (!extractor_.extract(gray)) return;
   }
   const std::vector<cv::KeyPoint>& detected = opencv_orb_ ? opencv_keypoints_ : extractor_.keypoints();
   const cv::Mat descriptors = opencv_orb_ ? opencv_descriptors_ : extractor_.descriptors();

@@ -456,6 +456,25 @@ TEST(OrbExtractor, ExtractsRealFramesWithoutAllocating) {
   }
   EXPECT_EQ(allocations, 0);
   EXPECT_GT(ros2d_with_depth, 50U * 500U);
+
+  // One front-end serves colour and infrared images, each kind with its own FAST threshold, and
+  // switching kinds allocates nothing.
+  config.ros2d_keypoints = 0;
+  config.orb_fast_threshold = 60;
+  config.ir_orb_fast_threshold = 5;
+  rankslam::slam::OrbFrontend both(config, camera);
+  both.extract(frames.gray[0], frames.depth[0], photometric, rankslam::slam::ImageSource::kColour);
+  const std::size_t colour = photometric.size();
+  {
+    const rankslam::test_support::CountAllocations count;
+    both.extract(frames.gray[0], frames.depth[0], photometric, rankslam::slam::ImageSource::kInfrared);
+    const std::size_t infrared = photometric.size();
+    both.extract(frames.gray[0], frames.depth[0], photometric, rankslam::slam::ImageSource::kColour);
+    allocations = count.allocations();
+    EXPECT_GT(infrared, 2 * colour) << "the infrared threshold (5) finds more corners than the colour one (60)";
+  }
+  EXPECT_EQ(photometric.size(), colour);
+  EXPECT_EQ(allocations, 0);
 }
 
 }  // namespace

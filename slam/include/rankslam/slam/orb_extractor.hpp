@@ -70,6 +70,8 @@ class OrbExtractor {
   /// set-up's re-sizes the buffers first (the only case that allocates). Returns false, with no
   /// features, for an image of another type or too small for one patch.
   bool extract(const cv::Mat& gray);
+  /// The FAST threshold of the next extractions (clamped to 1..254; no allocation).
+  void set_fast_threshold(int threshold);
 
   /// Describes keypoints found by another detector (ROS2D, docs/methods.md §15) the way extract()
   /// describes its own: each goes to the pyramid level nearest its scale (`size` / `base_size`

@@ -53,12 +53,13 @@ struct FeatureMatch {
 /// config.orb_implementation selects OpenCV's cv::ORB (which allocates on every frame).
 class OrbFrontend {
  public:
-  /// `fast_threshold` overrides config.orb_fast_threshold when positive (the IR image's contrast
-  /// differs from the colour image's).
-  OrbFrontend(const SlamConfig& config, const camera::DepthCameraModel& camera, int fast_threshold = 0);
+  OrbFrontend(const SlamConfig& config, const camera::DepthCameraModel& camera);
 
-  /// `gray` is the image features are detected on; `depth` the registered raw depth.
-  void extract(const cv::Mat& gray, const cv::Mat& depth, PhotometricFeatures& features);
+  /// `gray` is the image features are detected on, of kind `source`; `depth` the registered raw
+  /// depth. An infrared image is detected with config.ir_orb_fast_threshold where it is positive
+  /// (its contrast differs from the colour image's): one extractor, and its buffers, serves both.
+  void extract(const cv::Mat& gray, const cv::Mat& depth, PhotometricFeatures& features,
+               ImageSource source = ImageSource::kColour);
 
  private:
   const camera::DepthCameraModel& camera_;
@@ -67,6 +68,8 @@ class OrbFrontend {
   float depth_noise_per_m_;
   float keypoint_sigma_px_;
   float scale_factor_;
+  int colour_fast_threshold_;
+  int infrared_fast_threshold_;
   OrbExtractor extractor_;
   std::optional<features::Ros2dDetector> ros2d_;  ///< Set only when config.ros2d_keypoints is 1.
   std::vector<cv::KeyPoint> ros2d_keypoints_;
