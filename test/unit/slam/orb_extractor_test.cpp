@@ -478,3 +478,29 @@ TEST(OrbExtractor, ExtractsRealFramesWithoutAllocating) {
 }
 
 }  // namespace
+
+TEST(OrbExtractor, AnImagesFeaturesDoNotDependOnTheImageBefore) {
+  const TumFrames& frames = fr1_rpy_head();
+  if (!frames.skip_reason.empty()) GTEST_SKIP() << frames.skip_reason;
+  ASSERT_GE(frames.gray.size(), 11U);
+  OrbExtractor fresh(OrbExtractorSettings{});
+  ASSERT_TRUE(fresh.extract(frames.gray[10]));
+  OrbExtractor used(OrbExtractorSettings{});
+  cv::Mat dark;
+  frames.gray[0].convertTo(dark, -1, 0.2, 3.0);
+  used.set_fast_threshold(5);
+  ASSERT_TRUE(used.extract(dark));
+  used.set_fast_threshold(OrbExtractorSettings{}.fast_threshold);
+  ASSERT_TRUE(used.extract(frames.gray[10]));
+  ASSERT_EQ(used.keypoints().size(), fresh.keypoints().size());
+  int differing = 0;
+  for (std::size_t i = 0; i < fresh.keypoints().size(); ++i) {
+    const cv::KeyPoint& a = fresh.keypoints()[i];
+    const cv::KeyPoint& b = used.keypoints()[i];
+    const bool same = a.pt == b.pt && a.angle == b.angle && a.octave == b.octave && a.response == b.response &&
+                      cv::norm(fresh.descriptors().row(static_cast<int>(i)), used.descriptors().row(static_cast<int>(i)),
+                               cv::NORM_HAMMING) == 0.0;
+    differing += same ? 0 : 1;
+  }
+  EXPECT_EQ(differing, 0);
+}
