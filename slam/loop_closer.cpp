@@ -166,16 +166,13 @@ void LoopCloser::try_candidate(StoredKeyframe& stored, FrameResult& result) {
 bool LoopCloser::register_stored(const StoredKeyframe& stored, const StoredKeyframe& current,
                                  const Eigen::Isometry3d& predicted, double min_inliers,
                                  StoredRegistration& out) {
-  bool with_geometry = search_geometric_ != nullptr;
-  if (with_geometry && (current_decoded_from_ != &current || current_decoded_sequence_ != current.sequence)) {
-    current_decoded_from_ = nullptr;
-    if (current.geometric.decode(current_decoded_)) {
-      current_decoded_from_ = &current;
-      current_decoded_sequence_ = current.sequence;
-    }
+  // A key-frame's sequence names it (sequences start at 1): the current one is decoded once.
+  if (search_geometric_ != nullptr && current_decoded_sequence_ != current.sequence) {
+    current_decoded_sequence_ = current.geometric.decode(current_decoded_) ? current.sequence : 0;
   }
   // Sized from the store at set-up: a decode cannot fail.
-  with_geometry = with_geometry && current_decoded_from_ != nullptr && stored.geometric.decode(stored_decoded_);
+  const bool with_geometry = search_geometric_ != nullptr && current_decoded_sequence_ == current.sequence &&
+                             stored.geometric.decode(stored_decoded_);
   FrameResult scratch;
   out.estimate = registrar_.register_frames(
       stored.photometric, stored.velocity, current.photometric, current.velocity, scratch, predicted, predicted,

@@ -210,11 +210,10 @@ void write_keyframe(ByteWriter& out, int slot, const StoredKeyframe& keyframe) {
 }
 
 constexpr std::size_t kPhotometricRecordBytes = 5 * 4 + 2 * 4 + kDescriptorBytes + 3 * 4 + 4;
+// Format version 1 kept each SHOT value and each cloud normal's components as floats.
 constexpr std::size_t kGeometricRecordBytes = (3 + 3 + 1 + 1) * 4 + geometry::kShotSize;
-// Format version 1 kept each SHOT value as a float.
 constexpr std::size_t kGeometricRecordBytesV1 = (3 + 3 + 1 + geometry::kShotSize) * 4;
 constexpr std::size_t kCloudRecordBytes = (3 + 2 + 1) * 4 + 3 * 2;
-// Format version 1 kept each cloud normal as three floats.
 constexpr std::size_t kCloudRecordBytesV1 = (3 + 3 + 2 + 1) * 4;
 constexpr std::size_t kPointRecordBytes = 3 * 4 + 3;
 

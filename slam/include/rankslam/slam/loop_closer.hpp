@@ -124,10 +124,9 @@ class LoopCloser {
   const geometry::GeometricFeatures* search_geometric_ = nullptr;
   geometry::GeometricFeatures search_copy_;
   /// The two key-frames of a registration decoded from the store (StoredGeometry::decode); the
-  /// current one is decoded again only when the key-frame changes.
+  /// current one, by its sequence (0: none), is decoded again only when the key-frame changes.
   geometry::GeometricFeatures stored_decoded_;
   geometry::GeometricFeatures current_decoded_;
-  const StoredKeyframe* current_decoded_from_ = nullptr;
   std::int64_t current_decoded_sequence_ = 0;
   int closures_ = 0;
   int refuted_ = 0;
