@@ -107,9 +107,9 @@ inline constexpr slam::Mode kDefaultMode = slam::Mode::kFused;
   return static_cast<double>(usage.ru_maxrss) / 1024.0;  // Linux reports kilobytes
 }
 
-/// The vector unit rankslam's own kernels run on ("avx2+fma" or "avx2", with "+avx512vnni"
-/// where SHOT matching uses it, or "portable"; RANKSLAM_PORTABLE_KERNELS forces the last):
-/// report.json's `vector_kernels`.
+/// The vector unit rankslam's own kernels run on: Highway's target ("sse4", "avx2", "avx3",
+/// "avx3_dl", "neon"), with "+avx512vnni" where SHOT matching's 8-bit pass runs, or "portable"
+/// (RANKSLAM_PORTABLE_KERNELS forces it): report.json's `vector_kernels`.
 [[nodiscard]] std::string vector_kernels();
 
 /// The scene `rankslam replay` simulates when given no recording.

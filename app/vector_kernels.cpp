@@ -7,8 +7,7 @@ namespace rankslam::app {
 
 std::string vector_kernels() {
   // The portable loops may still be vectorised by the compiler for the build's baseline.
-  if (!parallel::cpu_has_avx2()) return "portable";
-  std::string name = parallel::cpu_has_avx2_fma() ? "avx2+fma" : "avx2";
+  std::string name = parallel::vector_target();
   if (geometry::DescriptorMatcher::cpu_has_vnni()) name += "+avx512vnni";
   return name;
 }

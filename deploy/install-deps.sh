@@ -6,7 +6,7 @@ set -euo pipefail
 build_packages=(
   build-essential cmake ninja-build pkg-config file
   libeigen3-dev libopencv-dev libceres-dev libsuitesparse-dev libopenni2-dev
-  libnanoflann-dev libcli11-dev libyaml-cpp-dev libsystemd-dev zlib1g-dev
+  libnanoflann-dev libcli11-dev libyaml-cpp-dev libsystemd-dev zlib1g-dev libhwy-dev
 )
 test_packages=(
   libgtest-dev libgmock-dev libbenchmark-dev libopencv-contrib-dev libpcl-dev

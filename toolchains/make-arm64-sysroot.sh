@@ -25,7 +25,7 @@ triplet=aarch64-linux-gnu
 packages=(
   libstdc++-12-dev
   libeigen3-dev libopencv-dev libceres-dev libsuitesparse-dev libopenni2-dev
-  libnanoflann-dev libcli11-dev libyaml-cpp-dev libsystemd-dev zlib1g-dev
+  libnanoflann-dev libcli11-dev libyaml-cpp-dev libsystemd-dev zlib1g-dev libhwy-dev
   libgtest-dev libgmock-dev libbenchmark-dev
 )
 tools=(mmdebstrap g++-aarch64-linux-gnu qemu-user-static)

@@ -9,12 +9,8 @@
 
 #include <Eigen/Eigenvalues>
 
-#if defined(__x86_64__) && defined(__GNUC__)
-#include <immintrin.h>
-#define RANKSLAM_GEOMETRY_HAVE_AVX2_NORMALS 1
-#endif
-
 #include "rankslam/geometry/point_grid.hpp"
+#include "vector_kernels.hpp"
 
 namespace rankslam::geometry {
 
@@ -211,77 +207,6 @@ void add_block_points_portable(const float* x, const float* y, const float* z, i
   }
 }
 
-#ifdef RANKSLAM_GEOMETRY_HAVE_AVX2_NORMALS
-// The 4 pixels of 8 consecutive blocks (32 pixels from `row`) as 4 vectors, vector c holding
-// pixel c of blocks 0..7 in order.
-__attribute__((target("avx2"))) inline void pixels_of_8_blocks(const float* row, __m256 (&pixel)[4]) {
-  const __m256 v0 = _mm256_loadu_ps(row);       // blocks 0, 1
-  const __m256 v1 = _mm256_loadu_ps(row + 8);   // blocks 2, 3
-  const __m256 v2 = _mm256_loadu_ps(row + 16);  // blocks 4, 5
-  const __m256 v3 = _mm256_loadu_ps(row + 24);  // blocks 6, 7
-  const __m256 t0 = _mm256_unpacklo_ps(v0, v1);
-  const __m256 t1 = _mm256_unpackhi_ps(v0, v1);
-  const __m256 t2 = _mm256_unpacklo_ps(v2, v3);
-  const __m256 t3 = _mm256_unpackhi_ps(v2, v3);
-  // The shuffles leave blocks in the order 0 2 4 6 1 3 5 7.
-  const __m256i order = _mm256_setr_epi32(0, 4, 1, 5, 2, 6, 3, 7);
-  pixel[0] = _mm256_permutevar8x32_ps(_mm256_shuffle_ps(t0, t2, _MM_SHUFFLE(1, 0, 1, 0)), order);
-  pixel[1] = _mm256_permutevar8x32_ps(_mm256_shuffle_ps(t0, t2, _MM_SHUFFLE(3, 2, 3, 2)), order);
-  pixel[2] = _mm256_permutevar8x32_ps(_mm256_shuffle_ps(t1, t3, _MM_SHUFFLE(1, 0, 1, 0)), order);
-  pixel[3] = _mm256_permutevar8x32_ps(_mm256_shuffle_ps(t1, t3, _MM_SHUFFLE(3, 2, 3, 2)), order);
-}
-
-// add_block_points_portable for 8 blocks at a time (AVX2, chosen at run time): each block's
-// points added in the same order, no point added as +0 (which leaves a sum that started at +0
-// unchanged) and bounded as ±infinity, so the same sums and bounds. Returns the blocks done.
-__attribute__((target("avx2"))) int add_row_avx2(const float* x, const float* y, const float* z,
-                                                 int blocks, float* sum_x, float* sum_y,
-                                                 float* sum_z, float* min_x, float* min_y,
-                                                 float* min_z, float* max_x, float* max_y,
-                                                 float* max_z, std::int32_t* count) {
-  const __m256 zero = _mm256_setzero_ps();
-  const __m256 infinity = _mm256_set1_ps(std::numeric_limits<float>::infinity());
-  const __m256 minus_infinity = _mm256_set1_ps(-std::numeric_limits<float>::infinity());
-  int b = 0;
-  for (; b + 8 <= blocks; b += 8) {
-    const int first_pixel = b * BlockImage::kBlock;
-    __m256 px[4];
-    __m256 py[4];
-    __m256 pz[4];
-    pixels_of_8_blocks(x + first_pixel, px);
-    pixels_of_8_blocks(y + first_pixel, py);
-    pixels_of_8_blocks(z + first_pixel, pz);
-    __m256 sx = _mm256_loadu_ps(sum_x + b), sy = _mm256_loadu_ps(sum_y + b), sz = _mm256_loadu_ps(sum_z + b);
-    __m256 lx = _mm256_loadu_ps(min_x + b), ly = _mm256_loadu_ps(min_y + b), lz = _mm256_loadu_ps(min_z + b);
-    __m256 hx = _mm256_loadu_ps(max_x + b), hy = _mm256_loadu_ps(max_y + b), hz = _mm256_loadu_ps(max_z + b);
-    __m256i n = _mm256_loadu_si256(reinterpret_cast<const __m256i*>(count + b));
-    for (int c = 0; c < BlockImage::kBlock; ++c) {
-      const __m256 valid = _mm256_cmp_ps(pz[c], zero, _CMP_GT_OQ);
-      sx = _mm256_add_ps(sx, _mm256_and_ps(valid, px[c]));
-      sy = _mm256_add_ps(sy, _mm256_and_ps(valid, py[c]));
-      sz = _mm256_add_ps(sz, _mm256_and_ps(valid, pz[c]));
-      lx = _mm256_min_ps(lx, _mm256_blendv_ps(infinity, px[c], valid));
-      ly = _mm256_min_ps(ly, _mm256_blendv_ps(infinity, py[c], valid));
-      lz = _mm256_min_ps(lz, _mm256_blendv_ps(infinity, pz[c], valid));
-      hx = _mm256_max_ps(hx, _mm256_blendv_ps(minus_infinity, px[c], valid));
-      hy = _mm256_max_ps(hy, _mm256_blendv_ps(minus_infinity, py[c], valid));
-      hz = _mm256_max_ps(hz, _mm256_blendv_ps(minus_infinity, pz[c], valid));
-      n = _mm256_sub_epi32(n, _mm256_castps_si256(valid));  // valid lanes are −1
-    }
-    _mm256_storeu_ps(sum_x + b, sx);
-    _mm256_storeu_ps(sum_y + b, sy);
-    _mm256_storeu_ps(sum_z + b, sz);
-    _mm256_storeu_ps(min_x + b, lx);
-    _mm256_storeu_ps(min_y + b, ly);
-    _mm256_storeu_ps(min_z + b, lz);
-    _mm256_storeu_ps(max_x + b, hx);
-    _mm256_storeu_ps(max_y + b, hy);
-    _mm256_storeu_ps(max_z + b, hz);
-    _mm256_storeu_si256(reinterpret_cast<__m256i*>(count + b), n);
-  }
-  return b;
-}
-#endif
 
 }  // namespace
 
@@ -312,15 +237,13 @@ void CloudPreprocessor::BlockSums::add_row(const float* x, const float* y, const
   const int blocks = (width + kBlock - 1) / kBlock;
   const std::size_t first = static_cast<std::size_t>(block_row) * static_cast<std::size_t>(stride);
   int done = 0;
-#ifdef RANKSLAM_GEOMETRY_HAVE_AVX2_NORMALS
-  if (parallel::cpu_has_avx2()) {
-    // Whole groups of 8 blocks that lie inside the row.
-    done = add_row_avx2(x, y, z, width / kBlock, sum_x.data() + first, sum_y.data() + first,
-                        sum_z.data() + first, min_x.data() + first, min_y.data() + first,
-                        min_z.data() + first, max_x.data() + first, max_y.data() + first,
-                        max_z.data() + first, count.data() + first);
+  if (parallel::vector_kernels_enabled()) {
+    // Whole groups of blocks that lie inside the row.
+    done = vector::add_block_rows(x, y, z, width / kBlock, sum_x.data() + first, sum_y.data() + first,
+                                  sum_z.data() + first, min_x.data() + first, min_y.data() + first,
+                                  min_z.data() + first, max_x.data() + first, max_y.data() + first,
+                                  max_z.data() + first, count.data() + first);
   }
-#endif
   for (int b = done; b < blocks; ++b) {
     const std::size_t k = first + static_cast<std::size_t>(b);
     const int u = b * kBlock;

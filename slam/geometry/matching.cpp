@@ -1,6 +1,7 @@
 #include "rankslam/geometry/matching.hpp"
 
 #include "rankslam/parallel/cpu_features.hpp"
+#include "vector_kernels.hpp"
 
 #include <algorithm>
 #include <cstdint>
@@ -11,34 +12,15 @@
 
 #if defined(__x86_64__) && defined(__GNUC__)
 #include <immintrin.h>
-#define RANKSLAM_GEOMETRY_HAVE_AVX2_KERNEL 1
+#define RANKSLAM_GEOMETRY_HAVE_VNNI_PASS 1
 #endif
 
 namespace rankslam::geometry {
 
 namespace {
 
-// The best so far of a block of A's rows (best_a, arg_a start at the block's first row) and of
-// every row of B over that block (arg_b holds indices into the whole of A).
-struct Best {
-  float* best_a;
-  int* arg_a;
-  float* best_b;
-  int* arg_b;
-  int row_offset;
-};
-
-// Strictly greater keeps the lower index on ties, since rows and columns are visited ascending.
-inline void update(Best& best, int i, int j, float s) {
-  if (s > best.best_a[i]) {
-    best.best_a[i] = s;
-    best.arg_a[i] = j;
-  }
-  if (s > best.best_b[j]) {
-    best.best_b[j] = s;
-    best.arg_b[j] = i + best.row_offset;
-  }
-}
+using vector::Best;
+using vector::update;
 
 // Portable kernel: 2 × 2 blocks of dot products, 8 independent lanes each, as Eigen fixed-size
 // packets (SSE2 / NEON).
@@ -96,115 +78,7 @@ void scan_portable(const float* a, int na, const float* b, int nb, int dim, Best
   }
 }
 
-#ifdef RANKSLAM_GEOMETRY_HAVE_AVX2_KERNEL
-__attribute__((target("avx2,fma"))) inline float horizontal_sum(__m256 v) {
-  const __m128 lo = _mm256_castps256_ps128(v);
-  const __m128 hi = _mm256_extractf128_ps(v, 1);
-  __m128 s = _mm_add_ps(lo, hi);
-  s = _mm_add_ps(s, _mm_movehl_ps(s, s));
-  s = _mm_add_ss(s, _mm_shuffle_ps(s, s, 0x55));
-  return _mm_cvtss_f32(s);
-}
-
-// 4 × 3 blocks: 12 accumulators, 3 rows of B and one of A in registers (16 of 16 ymm), so that
-// each 8-float step loads 7 vectors for 12 FMAs (4 × 2 blocks: 6 loads for 8). The blocks sum
-// each dot product in the same order as the 4 × 2 blocks did; only the last nb mod 3 columns
-// (nb mod 2 before) go through the one-column loop, which rounds differently. 16-bit fixed point
-// (vpmaddwd) does not pay on Zen 1, whose integer vector multiplies are no faster
-// (docs/results.md §5).
-__attribute__((target("avx2,fma"))) void scan_avx2(const float* a, int na, const float* b,
-                                                   int nb, int dim, Best& best) {
-  const int vector_end = dim - dim % 8;
-  const auto dot = [dim](const float* x, const float* y, int from) {
-    float s = 0.0F;
-    for (int k = from; k < dim; ++k) s += x[k] * y[k];
-    return s;
-  };
-  int i = 0;
-  for (; i + 3 < na; i += 4) {
-    const float* a0 = a + static_cast<std::ptrdiff_t>(i) * dim;
-    const float* a1 = a0 + dim;
-    const float* a2 = a1 + dim;
-    const float* a3 = a2 + dim;
-    int j = 0;
-    for (; j + 2 < nb; j += 3) {
-      const float* b0 = b + static_cast<std::ptrdiff_t>(j) * dim;
-      const float* b1 = b0 + dim;
-      const float* b2 = b1 + dim;
-      __m256 s00 = _mm256_setzero_ps(), s01 = _mm256_setzero_ps(), s02 = _mm256_setzero_ps();
-      __m256 s10 = _mm256_setzero_ps(), s11 = _mm256_setzero_ps(), s12 = _mm256_setzero_ps();
-      __m256 s20 = _mm256_setzero_ps(), s21 = _mm256_setzero_ps(), s22 = _mm256_setzero_ps();
-      __m256 s30 = _mm256_setzero_ps(), s31 = _mm256_setzero_ps(), s32 = _mm256_setzero_ps();
-      for (int k = 0; k < vector_end; k += 8) {
-        const __m256 y0 = _mm256_loadu_ps(b0 + k);
-        const __m256 y1 = _mm256_loadu_ps(b1 + k);
-        const __m256 y2 = _mm256_loadu_ps(b2 + k);
-        __m256 x = _mm256_loadu_ps(a0 + k);
-        s00 = _mm256_fmadd_ps(x, y0, s00);
-        s01 = _mm256_fmadd_ps(x, y1, s01);
-        s02 = _mm256_fmadd_ps(x, y2, s02);
-        x = _mm256_loadu_ps(a1 + k);
-        s10 = _mm256_fmadd_ps(x, y0, s10);
-        s11 = _mm256_fmadd_ps(x, y1, s11);
-        s12 = _mm256_fmadd_ps(x, y2, s12);
-        x = _mm256_loadu_ps(a2 + k);
-        s20 = _mm256_fmadd_ps(x, y0, s20);
-        s21 = _mm256_fmadd_ps(x, y1, s21);
-        s22 = _mm256_fmadd_ps(x, y2, s22);
-        x = _mm256_loadu_ps(a3 + k);
-        s30 = _mm256_fmadd_ps(x, y0, s30);
-        s31 = _mm256_fmadd_ps(x, y1, s31);
-        s32 = _mm256_fmadd_ps(x, y2, s32);
-      }
-      update(best, i, j, horizontal_sum(s00) + dot(a0, b0, vector_end));
-      update(best, i, j + 1, horizontal_sum(s01) + dot(a0, b1, vector_end));
-      update(best, i, j + 2, horizontal_sum(s02) + dot(a0, b2, vector_end));
-      update(best, i + 1, j, horizontal_sum(s10) + dot(a1, b0, vector_end));
-      update(best, i + 1, j + 1, horizontal_sum(s11) + dot(a1, b1, vector_end));
-      update(best, i + 1, j + 2, horizontal_sum(s12) + dot(a1, b2, vector_end));
-      update(best, i + 2, j, horizontal_sum(s20) + dot(a2, b0, vector_end));
-      update(best, i + 2, j + 1, horizontal_sum(s21) + dot(a2, b1, vector_end));
-      update(best, i + 2, j + 2, horizontal_sum(s22) + dot(a2, b2, vector_end));
-      update(best, i + 3, j, horizontal_sum(s30) + dot(a3, b0, vector_end));
-      update(best, i + 3, j + 1, horizontal_sum(s31) + dot(a3, b1, vector_end));
-      update(best, i + 3, j + 2, horizontal_sum(s32) + dot(a3, b2, vector_end));
-    }
-    for (; j < nb; ++j) {
-      const float* b0 = b + static_cast<std::ptrdiff_t>(j) * dim;
-      for (int r = 0; r < 4; ++r) update(best, i + r, j, dot(a0 + r * dim, b0, 0));
-    }
-  }
-  for (; i < na; ++i) {
-    const float* a0 = a + static_cast<std::ptrdiff_t>(i) * dim;
-    for (int j = 0; j < nb; ++j) {
-      const float* b0 = b + static_cast<std::ptrdiff_t>(j) * dim;
-      __m256 s = _mm256_setzero_ps();
-      for (int k = 0; k < vector_end; k += 8) {
-        s = _mm256_fmadd_ps(_mm256_loadu_ps(a0 + k), _mm256_loadu_ps(b0 + k), s);
-      }
-      update(best, i, j, horizontal_sum(s) + dot(a0, b0, vector_end));
-    }
-  }
-}
-
-// One dot product summed as scan_avx2 sums it outside its blocks' last columns: 8 lanes of
-// multiply-adds, their horizontal sum, then the products past the last whole 8 one at a time.
-__attribute__((target("avx2,fma"))) float dot_in_lanes(const float* x, const float* y, int dim) {
-  const int vector_end = dim - dim % 8;
-  __m256 s = _mm256_setzero_ps();
-  for (int k = 0; k < vector_end; k += 8) s = _mm256_fmadd_ps(_mm256_loadu_ps(x + k), _mm256_loadu_ps(y + k), s);
-  float tail = 0.0F;
-  for (int k = vector_end; k < dim; ++k) tail += x[k] * y[k];
-  return horizontal_sum(s) + tail;
-}
-
-// One dot product summed as scan_avx2 sums its blocks' last columns: one product at a time.
-__attribute__((target("avx2,fma"))) float dot_in_sequence(const float* x, const float* y, int dim) {
-  float s = 0.0F;
-  for (int k = 0; k < dim; ++k) s += x[k] * y[k];
-  return s;
-}
-
+#ifdef RANKSLAM_GEOMETRY_HAVE_VNNI_PASS
 #define RANKSLAM_VNNI_TARGET __attribute__((target("avx2,fma,avx512f,avx512vl,avx512vnni")))
 
 // The 8 int32 lanes of each of s[0..7], summed, as 8 floats.
@@ -383,11 +257,11 @@ __attribute__((target("avx2,fma"))) int reaching(const float* approximate, const
 #endif
 
 // Rows of A go to the float kernels in chunks of this many (a multiple of their 4-row blocks);
-// the chunks also decide how scan_avx2 sums each pair (sums_in_sequence).
+// the chunks also decide how vector::scan_dot_products sums each pair (sums_in_sequence).
 constexpr int kRowsPerChunk = 32;
 
-#ifdef RANKSLAM_GEOMETRY_HAVE_AVX2_KERNEL
-// True where scan_avx2 sums pair (i, j) one product at a time: a row in a whole 4-row block of
+#ifdef RANKSLAM_GEOMETRY_HAVE_VNNI_PASS
+// True where vector::scan_dot_products sums pair (i, j) in sequence: a row in a whole 4-row block of
 // its chunk, against one of the last nb mod 3 columns, which its 4 × 3 blocks leave over.
 bool sums_in_sequence(int i, int na, int j, int nb) {
   const int chunk_start = i / kRowsPerChunk * kRowsPerChunk;
@@ -399,8 +273,10 @@ bool sums_in_sequence(int i, int na, int j, int nb) {
 }  // namespace
 
 bool DescriptorMatcher::cpu_has_vnni() {
-#ifdef RANKSLAM_GEOMETRY_HAVE_AVX2_KERNEL
-  static const bool has = parallel::cpu_has_avx2_fma() && __builtin_cpu_supports("avx512f") &&
+#ifdef RANKSLAM_GEOMETRY_HAVE_VNNI_PASS
+  // Its candidates' exact values are the vector kernel's sums.
+  static const bool has = parallel::vector_kernels_enabled() && parallel::cpu_has_avx2_fma() &&
+                          __builtin_cpu_supports("avx512f") &&
                           __builtin_cpu_supports("avx512vl") && __builtin_cpu_supports("avx512vnni");
   return has;
 #else
@@ -408,13 +284,7 @@ bool DescriptorMatcher::cpu_has_vnni() {
 #endif
 }
 
-bool DescriptorMatcher::cpu_has_avx2() {
-#ifdef RANKSLAM_GEOMETRY_HAVE_AVX2_KERNEL
-  return parallel::cpu_has_avx2_fma();
-#else
-  return false;
-#endif
-}
+bool DescriptorMatcher::has_vector_kernel() { return parallel::vector_kernels_enabled(); }
 
 std::string DescriptorMatcher::configure(int max_descriptors, int dimension, Kernel kernel,
                                          parallel::ThreadTeam* team) {
@@ -433,7 +303,7 @@ std::string DescriptorMatcher::configure(int max_descriptors, int dimension, Ker
   arg_of_a_.assign(n, -1);
   best_of_b_.assign(n * blocks, 0.0F);
   arg_of_b_.assign(n * blocks, -1);
-  use_avx2_ = kernel != Kernel::kPortable && cpu_has_avx2();
+  use_vector_ = kernel != Kernel::kPortable && has_vector_kernel();
   // Up to 512 values the 8-bit sums stay below 2^24, exact in float.
   constexpr int kMaxQuantisedDimension = 512;
   use_vnni_ = kernel == Kernel::kBest && cpu_has_vnni() && dimension <= kMaxQuantisedDimension;
@@ -498,15 +368,11 @@ void DescriptorMatcher::match_float(const float* a, int count_a, const float* b,
     Best best{best_of_a_.data() + first, arg_of_a_.data() + first, best_of_b_.data() + b_offset,
               arg_of_b_.data() + b_offset, first};
     const float* rows_of_a = a + static_cast<std::ptrdiff_t>(first) * dimension_;
-#ifdef RANKSLAM_GEOMETRY_HAVE_AVX2_KERNEL
-    if (use_avx2_) {
-      scan_avx2(rows_of_a, end - first, b, count_b, dimension_, best);
+    if (use_vector_) {
+      vector::scan_dot_products(rows_of_a, end - first, b, count_b, dimension_, best);
     } else {
       scan_portable(rows_of_a, end - first, b, count_b, dimension_, best);
     }
-#else
-    scan_portable(rows_of_a, end - first, b, count_b, dimension_, best);
-#endif
   };
   parallel::for_chunks(team_, count_a, kRowsPerChunk, scan_rows);
   merge_column_bests(count_b);
@@ -530,7 +396,7 @@ void DescriptorMatcher::merge_column_bests(int count_b) {
 }
 
 bool DescriptorMatcher::match_8bit(const float* a, int count_a, const float* b, int count_b) {
-#ifdef RANKSLAM_GEOMETRY_HAVE_AVX2_KERNEL
+#ifdef RANKSLAM_GEOMETRY_HAVE_VNNI_PASS
   const int dim = dimension_;
   const int padded = quantised_dimension_;
   const int stride = approximate_stride_;
@@ -586,7 +452,7 @@ bool DescriptorMatcher::match_8bit(const float* a, int count_a, const float* b, 
   const auto exact = [&](int i, int j) {
     const float* x = a + static_cast<std::ptrdiff_t>(i) * dim;
     const float* y = b + static_cast<std::ptrdiff_t>(j) * dim;
-    return sums_in_sequence(i, count_a, j, count_b) ? dot_in_sequence(x, y, dim) : dot_in_lanes(x, y, dim);
+    return sums_in_sequence(i, count_a, j, count_b) ? vector::dot_in_sequence(x, y, dim) : vector::dot_in_lanes(x, y, dim);
   };
   constexpr float kLowest = -std::numeric_limits<float>::infinity();
   const int threads = parallel::team_size(team_);

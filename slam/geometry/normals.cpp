@@ -9,13 +9,10 @@
 
 #include <Eigen/Eigenvalues>
 
-#if defined(__x86_64__) && defined(__GNUC__)
-#include <immintrin.h>
-#define RANKSLAM_GEOMETRY_HAVE_AVX2_NORMALS 1
-#endif
+#include "vector_kernels.hpp"
 
 // Normals from the block image of the organised depth image: the moments of the blocks inside a
-// metric radius around a point, portable 4 blocks at a time or AVX2 8 at a time.
+// metric radius around a point, portable 4 blocks at a time or with the vector kernel (up to 8).
 namespace rankslam::geometry {
 
 void BlockImage::Layer::reserve(std::size_t blocks) {
@@ -140,126 +137,6 @@ struct LaneMoments {
   }
 };
 
-#ifdef RANKSLAM_GEOMETRY_HAVE_AVX2_NORMALS
-__attribute__((target("avx2,fma"))) float horizontal_sum(__m256 v) {
-  const __m128 lo = _mm256_castps256_ps128(v);
-  const __m128 hi = _mm256_extractf128_ps(v, 1);
-  __m128 s = _mm_add_ps(lo, hi);
-  s = _mm_add_ps(s, _mm_movehl_ps(s, s));
-  s = _mm_add_ss(s, _mm_shuffle_ps(s, s, 0x55));
-  return _mm_cvtss_f32(s);
-}
-
-// LaneMoments::add, 8 blocks at a time (AVX2 and FMA, chosen at run time): sums[] holds n, sx,
-// sy, sz, sxx, sxy, sxz, syy, syz, szz per lane.
-__attribute__((target("avx2,fma"), always_inline)) inline void add_blocks_avx2(
-    const BlockImage::Layer& layer, std::size_t b, const __m256 (&center)[3], __m256 radius2,
-    __m256 valid, __m256 (&sums)[10]) {
-  const __m256 zero = _mm256_setzero_ps();
-  const __m256 magnitude = _mm256_castsi256_ps(_mm256_set1_epi32(0x7fffffff));
-  const std::array<const float*, 3> mean = {layer.x.data(), layer.y.data(), layer.z.data()};
-  const std::array<const float*, 3> centre = {layer.centre_x.data(), layer.centre_y.data(), layer.centre_z.data()};
-  const std::array<const float*, 3> half = {layer.half_x.data(), layer.half_y.data(), layer.half_z.data()};
-  const __m256 w0 = _mm256_and_ps(_mm256_loadu_ps(layer.weight.data() + b), valid);
-  __m256 d[3];
-  __m256 near2 = zero;
-  __m256 far2 = zero;
-  for (std::size_t axis = 0; axis < 3; ++axis) {
-    d[axis] = _mm256_sub_ps(_mm256_loadu_ps(mean[axis] + b), center[axis]);
-    const __m256 distance = _mm256_and_ps(_mm256_sub_ps(_mm256_loadu_ps(centre[axis] + b), center[axis]), magnitude);
-    const __m256 extent = _mm256_loadu_ps(half[axis] + b);
-    const __m256 near = _mm256_max_ps(_mm256_sub_ps(distance, extent), zero);
-    const __m256 far = _mm256_add_ps(distance, extent);
-    near2 = _mm256_fmadd_ps(near, near, near2);
-    far2 = _mm256_fmadd_ps(far, far, far2);
-  }
-  const __m256 share = _mm256_min_ps(
-      _mm256_max_ps(_mm256_div_ps(_mm256_sub_ps(radius2, near2),
-                                  _mm256_max_ps(_mm256_sub_ps(far2, near2), _mm256_set1_ps(1e-12F))),
-                    zero),
-      _mm256_set1_ps(1.0F));
-  const __m256 w = _mm256_mul_ps(w0, share);
-  const __m256 wd[3] = {_mm256_mul_ps(w, d[0]), _mm256_mul_ps(w, d[1]), _mm256_mul_ps(w, d[2])};
-  sums[0] = _mm256_add_ps(sums[0], w);
-  sums[1] = _mm256_add_ps(sums[1], wd[0]);
-  sums[2] = _mm256_add_ps(sums[2], wd[1]);
-  sums[3] = _mm256_add_ps(sums[3], wd[2]);
-  sums[4] = _mm256_fmadd_ps(wd[0], d[0], sums[4]);
-  sums[5] = _mm256_fmadd_ps(wd[0], d[1], sums[5]);
-  sums[6] = _mm256_fmadd_ps(wd[0], d[2], sums[6]);
-  sums[7] = _mm256_fmadd_ps(wd[1], d[1], sums[7]);
-  sums[8] = _mm256_fmadd_ps(wd[1], d[2], sums[8]);
-  sums[9] = _mm256_fmadd_ps(wd[2], d[2], sums[9]);
-}
-
-// 8 blocks of a window row from `block` on, the first `lanes` of them inside the window.
-struct WindowGroup {
-  std::int32_t block;
-  float lanes;
-};
-
-// The groups' blocks of both layers added to the lane sums, in order.
-__attribute__((target("avx2,fma"), always_inline)) inline void sum_window_groups(
-    const BlockImage& blocks, const WindowGroup* groups, int count, const __m256 (&center)[3],
-    __m256 radius2, __m256 (&sums)[10]) {
-  const __m256 lane_index = _mm256_setr_ps(0.0F, 1.0F, 2.0F, 3.0F, 4.0F, 5.0F, 6.0F, 7.0F);
-  for (int g = 0; g < count; ++g) {
-    const auto b = static_cast<std::size_t>(groups[g].block);
-    const __m256 valid = _mm256_cmp_ps(lane_index, _mm256_set1_ps(groups[g].lanes), _CMP_LT_OQ);
-    add_blocks_avx2(blocks.front, b, center, radius2, valid, sums);
-    const __m256 back = _mm256_and_ps(_mm256_loadu_ps(blocks.back.weight.data() + b), valid);
-    if (_mm256_movemask_ps(_mm256_cmp_ps(back, _mm256_setzero_ps(), _CMP_GT_OQ)) != 0) {
-      add_blocks_avx2(blocks.back, b, center, radius2, valid, sums);
-    }
-  }
-}
-
-// The unstrided window of organised_normal, 8 blocks of a row at a time (AVX2 and FMA, chosen
-// at run time): the same sums as the portable 4-block loop there, in another order and with
-// fused multiply-adds (normals within 0.1° of it, test/unit/geometry normals_test). The far
-// parts of blocks across depth edges are added where a group of 8 has any.
-__attribute__((target("avx2,fma"))) void window_moments_avx2(const BlockImage& blocks,
-                                                              const Eigen::Vector3f& center, int bu,
-                                                              int bv, int steps, float half_blocks,
-                                                              float r2, Moments& m) {
-  const __m256 radius2 = _mm256_set1_ps(r2);
-  const __m256 c[3] = {_mm256_set1_ps(center.x()), _mm256_set1_ps(center.y()), _mm256_set1_ps(center.z())};
-  __m256 sums[10];
-  for (__m256& sum : sums) sum = _mm256_setzero_ps();
-  // The window's groups of 8 blocks are listed first (rows ascending, then columns), then summed
-  // in one loop: the rows' varying group counts would otherwise end each row's loop on a
-  // mispredicted branch in the middle of the vector work.
-  constexpr int kMaxGroups = 64;
-  std::array<WindowGroup, kMaxGroups> groups;
-  int listed = 0;
-  const float reach = half_blocks + 1.0F;
-  for (int v = std::max(bv - steps, 0); v <= std::min(bv + steps, blocks.height - 1); ++v) {
-    const auto dv = static_cast<float>(v - bv);
-    const int span = static_cast<int>(std::sqrt(std::max(0.0F, reach * reach - dv * dv)));
-    const int u_lo = std::max(bu - span, 0);
-    const int u_hi = std::min(bu + span, blocks.width - 1);
-    for (int u = u_lo; u <= u_hi; u += 8) {
-      if (listed == kMaxGroups) {
-        sum_window_groups(blocks, groups.data(), listed, c, radius2, sums);
-        listed = 0;
-      }
-      groups[static_cast<std::size_t>(listed++)] =
-          WindowGroup{static_cast<std::int32_t>(blocks.index(u, v)), static_cast<float>(u_hi - u + 1)};
-    }
-  }
-  sum_window_groups(blocks, groups.data(), listed, c, radius2, sums);
-  m.n += horizontal_sum(sums[0]);
-  m.sx += horizontal_sum(sums[1]);
-  m.sy += horizontal_sum(sums[2]);
-  m.sz += horizontal_sum(sums[3]);
-  m.sxx += horizontal_sum(sums[4]);
-  m.sxy += horizontal_sum(sums[5]);
-  m.sxz += horizontal_sum(sums[6]);
-  m.syy += horizontal_sum(sums[7]);
-  m.syz += horizontal_sum(sums[8]);
-  m.szz += horizontal_sum(sums[9]);
-}
-#endif
 
 // Lens distortion changes the pixel footprint of a metric radius by a few per cent over the
 // image (fr1's barrel distortion shrinks it toward the corners); the window is widened by this
@@ -284,28 +161,27 @@ int organised_normal(const BlockImage& blocks, float fx, const Eigen::Vector3f& 
   const float r2 = radius_m * radius_m;
 
   Moments m;
-#ifdef RANKSLAM_GEOMETRY_HAVE_AVX2_NORMALS
-  const bool avx2 = best_kernel && parallel::cpu_has_avx2_fma();
-#else
-  const bool avx2 = false;
-  (void)best_kernel;
-#endif
-  if (stride == 1 && avx2) {
-#ifdef RANKSLAM_GEOMETRY_HAVE_AVX2_NORMALS
-    window_moments_avx2(blocks, center, bu, bv, steps, half_blocks, r2, m);
-#endif
+  if (stride == 1 && best_kernel && parallel::vector_kernels_enabled()) {
+    float sums[10] = {};
+    vector::window_moments(blocks, center, bu, bv, steps, half_blocks, r2, sums);
+    m.n = sums[0];
+    m.sx = sums[1];
+    m.sy = sums[2];
+    m.sz = sums[3];
+    m.sxx = sums[4];
+    m.sxy = sums[5];
+    m.sxz = sums[6];
+    m.syy = sums[7];
+    m.syz = sums[8];
+    m.szz = sums[9];
   } else if (stride == 1) {
     // Rows of the window 4 blocks at a time (the rows' padding keeps the reads in bounds).
     const Lanes lane_index(0.0F, 1.0F, 2.0F, 3.0F);
     LaneMoments sums;
-    // The radius' pixel footprint is a disc: each row of the window only as wide as the disc
-    // there (plus a block for the blocks' own extent).
-    const float reach = half_blocks + 1.0F;
     for (int v = std::max(bv - steps, 0); v <= std::min(bv + steps, blocks.height - 1); ++v) {
-      const auto dv = static_cast<float>(v - bv);
-      const int span = static_cast<int>(std::sqrt(std::max(0.0F, reach * reach - dv * dv)));
-      const int u_lo = std::max(bu - span, 0);
-      const int u_hi = std::min(bu + span, blocks.width - 1);
+      int u_lo = 0;
+      int u_hi = -1;
+      vector::window_row(blocks, bu, bv, half_blocks, v, u_lo, u_hi);
       for (int u = u_lo; u <= u_hi; u += 4) {
         const std::size_t b = blocks.index(u, v);
         const Lanes valid = (lane_index < static_cast<float>(u_hi - u + 1)).cast<float>();

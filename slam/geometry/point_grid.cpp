@@ -7,10 +7,7 @@
 #include <cmath>
 #include <cstdlib>
 
-#if defined(__x86_64__) && defined(__GNUC__)
-#include <immintrin.h>
-#define RANKSLAM_GEOMETRY_HAVE_AVX2_GRID 1
-#endif
+#include "vector_kernels.hpp"
 
 namespace rankslam::geometry {
 
@@ -109,133 +106,19 @@ bool PointGrid::build(std::span<const Eigen::Vector3f> points, float cell_m) {
   return true;
 }
 
-namespace {
-
-#ifdef RANKSLAM_GEOMETRY_HAVE_AVX2_GRID
-// The offsets p − q of 8 points and their squared distances, x² + (y² + z²) as Eigen's
-// squaredNorm of a 3-vector sums it, without FMA: the values of the portable loops.
-struct Offsets {
-  __m256 dx, dy, dz, d2;
-};
-__attribute__((target("avx2"), always_inline)) inline Offsets offsets_avx2(const float* xs, const float* ys,
-                                                                          const float* zs, __m256 qx, __m256 qy,
-                                                                          __m256 qz) {
-  Offsets o{};
-  o.dx = _mm256_sub_ps(_mm256_loadu_ps(xs), qx);
-  o.dy = _mm256_sub_ps(_mm256_loadu_ps(ys), qy);
-  o.dz = _mm256_sub_ps(_mm256_loadu_ps(zs), qz);
-  o.d2 = _mm256_add_ps(_mm256_mul_ps(o.dx, o.dx), _mm256_add_ps(_mm256_mul_ps(o.dy, o.dy), _mm256_mul_ps(o.dz, o.dz)));
-  return o;
-}
-
-// PointGrid::within_radius 8 points at a time (AVX2, chosen at run time): the squared distances
-// of offsets_avx2, so the same values as the portable loop. Returns the hits of the whole blocks
-// of 8; `done` is how many points those covered.
-__attribute__((target("avx2"))) int within_radius_avx2(const float* xs, const float* ys,
-                                                       const float* zs, const int* indices,
-                                                       const Eigen::Vector3f& q, float r2,
-                                                       int count, int* hits, float* hit_d2,
-                                                       int& done) {
-  const __m256 qx = _mm256_set1_ps(q.x());
-  const __m256 qy = _mm256_set1_ps(q.y());
-  const __m256 qz = _mm256_set1_ps(q.z());
-  const __m256 limit = _mm256_set1_ps(r2);
-  alignas(32) float d2[8];
-  int found = 0;
-  int k = 0;
-  for (; k + 8 <= count; k += 8) {
-    const __m256 sum = offsets_avx2(xs + k, ys + k, zs + k, qx, qy, qz).d2;
-    unsigned inside = static_cast<unsigned>(_mm256_movemask_ps(_mm256_cmp_ps(sum, limit, _CMP_LE_OQ)));
-    if (inside == 0) continue;
-    _mm256_store_ps(d2, sum);
-    while (inside != 0) {
-      const int lane = __builtin_ctz(inside);
-      inside &= inside - 1;
-      hits[found] = indices[k + lane];
-      hit_d2[found] = d2[lane];
-      ++found;
-    }
-  }
-  done = k;
-  return found;
-}
-
-// For gather_in_radius' AVX2 kernel: for each 8-bit mask the lanes of its set bits in order, a
-// nibble each, so that one permute packs the chosen lanes to the front.
-constexpr std::array<std::uint32_t, 256> kPackedLanes = [] {
-  std::array<std::uint32_t, 256> table{};
-  for (std::uint32_t mask = 0; mask < 256; ++mask) {
-    std::uint32_t lanes = 0;
-    int packed = 0;
-    for (std::uint32_t lane = 0; lane < 8; ++lane) {
-      if (((mask >> lane) & 1U) != 0) lanes |= lane << (4 * packed++);
-    }
-    table[mask] = lanes;
-  }
-  return table;
-}();
-
-// One cell's run of gather_in_radius, 8 points at a time (AVX2, chosen at run time): the squared
-// distances of within_radius_avx2, the points within r2 packed to the front of each block of 8
-// and stored whole. Reads up to 7 values past the run (the sorted arrays are padded) and ignores
-// them.
-__attribute__((target("avx2,popcnt"))) void gather_run_avx2(const float* xs, const float* ys,
-                                                           const float* zs, const int* indices,
-                                                           const Eigen::Vector3f& q, float r2,
-                                                           int count,
-                                                           const PointGrid::RadiusGather& out,
-                                                           int& written, int& support) {
-  const __m256 qx = _mm256_set1_ps(q.x());
-  const __m256 qy = _mm256_set1_ps(q.y());
-  const __m256 qz = _mm256_set1_ps(q.z());
-  const __m256 limit = _mm256_set1_ps(r2);
-  const __m256i lane_index = _mm256_setr_epi32(0, 1, 2, 3, 4, 5, 6, 7);
-  const __m256i nibble_shift = _mm256_setr_epi32(0, 4, 8, 12, 16, 20, 24, 28);
-  for (int k = 0; k < count; k += 8) {
-    const auto [dx, dy, dz, sum] = offsets_avx2(xs + k, ys + k, zs + k, qx, qy, qz);
-    const __m256 in_run = _mm256_castsi256_ps(_mm256_cmpgt_epi32(_mm256_set1_epi32(count - k), lane_index));
-    const __m256 inside = _mm256_and_ps(in_run, _mm256_cmp_ps(sum, limit, _CMP_LE_OQ));
-    const auto inside_mask = static_cast<unsigned>(_mm256_movemask_ps(inside));
-    if (inside_mask == 0) continue;
-    support += __builtin_popcount(inside_mask);
-    const auto keep = static_cast<unsigned>(
-        _mm256_movemask_ps(_mm256_and_ps(inside, _mm256_cmp_ps(sum, _mm256_setzero_ps(), _CMP_NEQ_UQ))));
-    if (keep == 0) continue;
-    const __m256i lanes = _mm256_and_si256(
-        _mm256_srlv_epi32(_mm256_set1_epi32(static_cast<int>(kPackedLanes[keep])), nibble_shift),
-        _mm256_set1_epi32(7));
-    const int at = written;
-    _mm256_storeu_ps(out.dx + at, _mm256_permutevar8x32_ps(dx, lanes));
-    _mm256_storeu_ps(out.dy + at, _mm256_permutevar8x32_ps(dy, lanes));
-    _mm256_storeu_ps(out.dz + at, _mm256_permutevar8x32_ps(dz, lanes));
-    _mm256_storeu_ps(out.d2 + at, _mm256_permutevar8x32_ps(sum, lanes));
-    _mm256_storeu_si256(reinterpret_cast<__m256i*>(out.index + at),
-                        _mm256_permutevar8x32_epi32(
-                            _mm256_loadu_si256(reinterpret_cast<const __m256i*>(indices + k)), lanes));
-    written = std::min(at + __builtin_popcount(keep), out.capacity);
-  }
-}
-#endif
-
-}  // namespace
-
 int PointGrid::gather_in_radius(const Eigen::Vector3f& q, float radius_m, const RadiusGather& out,
                                 int& written) const {
   written = 0;
   int support = 0;
   const float r2 = radius_m * radius_m;
-#ifdef RANKSLAM_GEOMETRY_HAVE_AVX2_GRID
-  const bool avx2 = parallel::cpu_has_avx2();
-#endif
+  const bool vector_runs = parallel::vector_kernels_enabled();
   for_each_cell_near(q, radius_m, [&](const Cell& cell) {
     const auto b = static_cast<std::size_t>(cell.start);
-#ifdef RANKSLAM_GEOMETRY_HAVE_AVX2_GRID
-    if (avx2) {
-      gather_run_avx2(sorted_x_.data() + b, sorted_y_.data() + b, sorted_z_.data() + b,
-                      sorted_.data() + b, q, r2, cell.count, out, written, support);
+    if (vector_runs) {
+      vector::gather_run(sorted_x_.data() + b, sorted_y_.data() + b, sorted_z_.data() + b, sorted_.data() + b, q,
+                         r2, cell.count, out, written, support);
       return;
     }
-#endif
     for (std::size_t j = b; j < b + static_cast<std::size_t>(cell.count); ++j) {
       const float dx = sorted_x_[j] - q.x();
       const float dy = sorted_y_[j] - q.y();
@@ -260,12 +143,10 @@ int PointGrid::within_radius(const Eigen::Vector3f& q, float r2, int begin, int 
   const auto b = static_cast<std::size_t>(begin);
   int found = 0;
   int done = 0;
-#ifdef RANKSLAM_GEOMETRY_HAVE_AVX2_GRID
-  if (parallel::cpu_has_avx2()) {
-    found = within_radius_avx2(sorted_x_.data() + b, sorted_y_.data() + b, sorted_z_.data() + b,
-                               sorted_.data() + b, q, r2, count, indices, squared_distances, done);
+  if (parallel::vector_kernels_enabled()) {
+    found = vector::within_radius(sorted_x_.data() + b, sorted_y_.data() + b, sorted_z_.data() + b,
+                                  sorted_.data() + b, q, r2, count, indices, squared_distances, done);
   }
-#endif
   for (int k = done; k < count; ++k) {
     const auto j = b + static_cast<std::size_t>(k);
     const float dx = sorted_x_[j] - q.x();

@@ -9,69 +9,34 @@
 #include <Eigen/Eigenvalues>
 
 #include "fast_math.hpp"
-
-#if defined(__x86_64__) && defined(__GNUC__)
-#include <immintrin.h>
-#define RANKSLAM_GEOMETRY_HAVE_AVX2_SHOT 1
-#endif
+#include "vector_kernels.hpp"
 
 namespace rankslam::geometry {
 
 namespace {
 
-constexpr double kRad45 = 0.78539816339744830961566084581988;
-constexpr double kRad90 = 1.5707963267948966192313216916398;
-constexpr double kRad135 = 2.3561944901923449288469825374596;
-constexpr double kRadPi78 = 2.7488935718910690836548129603691;
-constexpr int kStride = kShotCosineBins + 1;  // values per volume
+using vector::kRad135;
+using vector::kRad45;
+using vector::kRad90;
+using vector::kRadPi78;
+using vector::VoteArrays;
+using vector::VoteConstants;
+using vector::VoteFrame;
+constexpr int kStride = vector::kShotStride;  // values per volume
 // PCL's sign tie-break looks at this many neighbours around the median distance.
 constexpr int kTieBreakPoints = 5;
 
-// Neighbours processed together: one AVX register, two SSE / NEON registers.
+// Neighbours processed together: the vector kernel takes blocks of up to 8.
 constexpr int kLanes = 8;
 using Lanes = Eigen::Array<float, kLanes, 1>;
 using LaneMap = Eigen::Map<Lanes>;
 using ConstLaneMap = Eigen::Map<const Lanes>;
 
-struct VoteArrays {
-  const float* dx;
-  const float* dy;
-  const float* dz;
-  const float* nx;
-  const float* ny;
-  const float* nz;
-  const float* distance;
-  std::int32_t* own;  // bin index into the descriptor
-  float* own_weight;
-  std::int32_t* cosine;  // bin index into the descriptor
-  float* cosine_weight;
-  std::int32_t* radial;  // bin index into the descriptor
-  float* radial_weight;
-  std::int32_t* elevation;  // bin index into the descriptor
-  float* elevation_weight;
-  std::int32_t* azimuth;  // bin index into the descriptor
-  float* azimuth_weight;
-};
-
-struct VoteFrame {
-  Eigen::Vector3f x, y, z;  // LRF axes
-  float radius_1_4, radius_1_2, radius_3_4;
-};
-
 // The bins and weights of every neighbour's five votes, branch-free (PCL's branches
 // as selects: a neighbour that PCL does not let vote for an adjacent volume votes 0 into its own
 // bin instead). Portable version, one neighbour at a time.
 void vote_bins_portable(const VoteArrays& v, const VoteFrame& f, int end) {
-  constexpr auto kStrideF = static_cast<float>(kStride);
-  constexpr auto kBins = static_cast<float>(kShotCosineBins);
-  constexpr auto kVolumesF = static_cast<float>(kShotVolumes);
-  constexpr auto kPif = static_cast<float>(detail::kPi);
-  constexpr auto kRad45f = static_cast<float>(kRad45);
-  constexpr auto kRad90f = static_cast<float>(kRad90);
-  constexpr auto kRad135f = static_cast<float>(kRad135);
-  constexpr auto kRadPi78f = static_cast<float>(kRadPi78);
-  constexpr float kInverseRad45 = 1.0F / kRad45f;
-  constexpr float kInverseRad90 = 1.0F / kRad90f;
+  using C = VoteConstants;
   const Eigen::Vector3f& frame_x = f.x;
   const Eigen::Vector3f& frame_y = f.y;
   const Eigen::Vector3f& frame_z = f.z;
@@ -117,15 +82,15 @@ void vote_bins_portable(const VoteArrays& v, const VoteFrame& f, int end) {
 
     // Cosine bin (PCL createBinDistanceShape): (1 + cos) · bins / 2 in [0, bins]; ≥ 0, so
     // truncation is PCL's floor(bin + 0.5).
-    const float bin = (1.0F + cosine) * (0.5F * kBins);
+    const float bin = (1.0F + cosine) * (0.5F * C::kBins);
     const auto step = static_cast<float>(static_cast<int>(bin + 0.5F));
-    const float own = volume * kStrideF + step;
+    const float own = volume * C::kStride + step;
     // Adjacent cosine bin, circular over the 10 bins as in PCL: (s + 1) % 10 or (s − 1 + 10) % 10.
     const float bin_distance = bin - step;
     float weight = 1.0F - std::abs(bin_distance);
-    const float next = step + 1.0F >= kBins ? step + 1.0F - kBins : step + 1.0F;
-    const float previous = step + (kBins - 1.0F) >= kBins ? step - 1.0F : step + (kBins - 1.0F);
-    cosine_data[k] = static_cast<std::int32_t>(volume * kStrideF + (bin_distance > 0.0F ? next : previous));
+    const float next = step + 1.0F >= C::kBins ? step + 1.0F - C::kBins : step + 1.0F;
+    const float previous = step + (C::kBins - 1.0F) >= C::kBins ? step - 1.0F : step + (C::kBins - 1.0F);
+    cosine_data[k] = static_cast<std::int32_t>(volume * C::kStride + (bin_distance > 0.0F ? next : previous));
     cosine_weight_data[k] = std::abs(bin_distance);
 
     // Distance (adjacent radial shells at R/2): the outer shell votes inward below 3R/4, the
@@ -133,7 +98,7 @@ void vote_bins_portable(const VoteArrays& v, const VoteFrame& f, int end) {
     const float radius_distance = (distance - (outer > 0.0F ? radius_3_4 : radius_1_4)) * inverse_radius_1_2;
     weight += 1.0F - std::abs(radius_distance);
     const float radial_vote = (outer > 0.0F ? radius_distance <= 0.0F : radius_distance >= 0.0F) ? 1.0F : 0.0F;
-    radial_data[k] = static_cast<std::int32_t>(own + radial_vote * (2.0F * kStrideF - 4.0F * kStrideF * outer));
+    radial_data[k] = static_cast<std::int32_t>(own + radial_vote * (2.0F * C::kStride - 4.0F * C::kStride * outer));
     radial_weight_data[k] = radial_vote * std::abs(radius_distance);
 
     // Inclination (adjacent elevation volumes at 90°): the lower one votes up below 135°, the
@@ -149,12 +114,12 @@ void vote_bins_portable(const VoteArrays& v, const VoteFrame& f, int end) {
                           ac * (0.0308918810F +
                                 ac * (-0.0170881256F + ac * (0.0066700901F + ac * -0.0012624911F))))));
     const float arc = std::sqrt(1.0F - ac) * poly;
-    const float inclination = c >= 0.0F ? arc : kPif - arc;
-    const float lower = (inclination > kRad90f || (inclination == kRad90f && z <= 0.0F)) ? 1.0F : 0.0F;
-    const float inclination_distance = (inclination - (lower > 0.0F ? kRad135f : kRad45f)) * kInverseRad90;
+    const float inclination = c >= 0.0F ? arc : C::kPi - arc;
+    const float lower = (inclination > C::kRad90 || (inclination == C::kRad90 && z <= 0.0F)) ? 1.0F : 0.0F;
+    const float inclination_distance = (inclination - (lower > 0.0F ? C::kRad135 : C::kRad45)) * C::kInverseRad90;
     weight += 1.0F - std::abs(inclination_distance);
     const float elevation_vote = (lower > 0.0F ? inclination_distance <= 0.0F : inclination_distance >= 0.0F) ? 1.0F : 0.0F;
-    elevation_data[k] = static_cast<std::int32_t>(own + elevation_vote * (2.0F * kStrideF * lower - kStrideF));
+    elevation_data[k] = static_cast<std::int32_t>(own + elevation_vote * (2.0F * C::kStride * lower - C::kStride));
     elevation_weight_data[k] = elevation_vote * std::abs(inclination_distance);
 
     // Azimuth (adjacent sectors, circular); undefined on the LRF's z axis. Arc tangent as
@@ -167,15 +132,15 @@ void vote_bins_portable(const VoteArrays& v, const VoteFrame& f, int end) {
                          t2 * (-0.33262347F +
                                t2 * (0.19354346F +
                                      t2 * (-0.11643287F + t2 * (0.05265332F + t2 * -0.01172120F)))));
-    azimuth = ay > ax ? 0.5F * kPif - azimuth : azimuth;
-    azimuth = x < 0.0F ? kPif - azimuth : azimuth;
+    azimuth = ay > ax ? 0.5F * C::kPi - azimuth : azimuth;
+    azimuth = x < 0.0F ? C::kPi - azimuth : azimuth;
     azimuth = y < 0.0F ? -azimuth : azimuth;
-    float azimuth_distance = (azimuth - (-kRadPi78f + kRad45f * sector)) * kInverseRad45;
+    float azimuth_distance = (azimuth - (-C::kRadPi78 + C::kRad45 * sector)) * C::kInverseRad45;
     azimuth_distance = azimuth_distance < -0.5F ? -0.5F : (azimuth_distance > 0.5F ? 0.5F : azimuth_distance);
     weight += defined * (1.0F - std::abs(azimuth_distance));
-    float adjacent = volume + (azimuth_distance > 0.0F ? 4.0F : kVolumesF - 4.0F);
-    adjacent = adjacent >= kVolumesF ? adjacent - kVolumesF : adjacent;
-    azimuth_data[k] = static_cast<std::int32_t>(adjacent * kStrideF + step);
+    float adjacent = volume + (azimuth_distance > 0.0F ? 4.0F : C::kVolumes - 4.0F);
+    adjacent = adjacent >= C::kVolumes ? adjacent - C::kVolumes : adjacent;
+    azimuth_data[k] = static_cast<std::int32_t>(adjacent * C::kStride + step);
     azimuth_weight_data[k] = defined * std::abs(azimuth_distance);
 
     own_data[k] = static_cast<std::int32_t>(own);
@@ -184,155 +149,9 @@ void vote_bins_portable(const VoteArrays& v, const VoteFrame& f, int end) {
 
 }
 
-#ifdef RANKSLAM_GEOMETRY_HAVE_AVX2_SHOT
-// Helpers of the AVX2 kernel (inlined into it).
-#define RANKSLAM_AVX2_INLINE __attribute__((target("avx2"), always_inline)) inline
-RANKSLAM_AVX2_INLINE __m256 avx_abs(__m256 a) { return _mm256_andnot_ps(_mm256_set1_ps(-0.0F), a); }
-RANKSLAM_AVX2_INLINE __m256 avx_clamp(__m256 a, float lo, float hi) {
-  return _mm256_min_ps(_mm256_max_ps(a, _mm256_set1_ps(lo)), _mm256_set1_ps(hi));
-}
-/// mask ? a : b, lane-wise.
-RANKSLAM_AVX2_INLINE __m256 avx_select(__m256 mask, __m256 a, __m256 b) { return _mm256_blendv_ps(b, a, mask); }
-RANKSLAM_AVX2_INLINE __m256 avx_dot(__m256 a, __m256 b, __m256 c, const Eigen::Vector3f& axis) {
-  return _mm256_add_ps(_mm256_add_ps(_mm256_mul_ps(a, _mm256_set1_ps(axis.x())), _mm256_mul_ps(b, _mm256_set1_ps(axis.y()))),
-                       _mm256_mul_ps(c, _mm256_set1_ps(axis.z())));
-}
-/// Bins held as exact small integers in floats, stored as integers.
-RANKSLAM_AVX2_INLINE void avx_store_bins(std::int32_t* to, __m256 bins) {
-  _mm256_storeu_si256(reinterpret_cast<__m256i*>(to), _mm256_cvttps_epi32(bins));
-}
-#undef RANKSLAM_AVX2_INLINE
-
-// vote_bins_portable, 8 neighbours at a time (AVX2, chosen at run time; no FMA, so that every
-// product rounds as in the portable version).
-__attribute__((target("avx2"))) void vote_bins_avx2(const VoteArrays& v, const VoteFrame& f, int end) {
-  const __m256 zero = _mm256_setzero_ps();
-  const __m256 one = _mm256_set1_ps(1.0F);
-  constexpr auto kStrideF = static_cast<float>(kStride);
-  constexpr auto kBins = static_cast<float>(kShotCosineBins);
-  constexpr auto kVolumesF = static_cast<float>(kShotVolumes);
-  constexpr auto kPif = static_cast<float>(detail::kPi);
-  constexpr auto kRad45f = static_cast<float>(kRad45);
-  constexpr auto kRad90f = static_cast<float>(kRad90);
-  constexpr auto kRad135f = static_cast<float>(kRad135);
-  constexpr auto kRadPi78f = static_cast<float>(kRadPi78);
-  const __m256 r14 = _mm256_set1_ps(f.radius_1_4);
-  const __m256 r12 = _mm256_set1_ps(f.radius_1_2);
-  const __m256 r34 = _mm256_set1_ps(f.radius_3_4);
-  const __m256 inverse_r12 = _mm256_set1_ps(1.0F / f.radius_1_2);
-  for (int k = 0; k < end; k += 8) {
-    const __m256 dx = _mm256_loadu_ps(v.dx + k);
-    const __m256 dy = _mm256_loadu_ps(v.dy + k);
-    const __m256 dz = _mm256_loadu_ps(v.dz + k);
-    const __m256 distance = _mm256_loadu_ps(v.distance + k);
-    const __m256 x = avx_dot(dx, dy, dz, f.x);
-    const __m256 y = avx_dot(dx, dy, dz, f.y);
-    const __m256 z = avx_dot(dx, dy, dz, f.z);
-    const __m256 cosine = avx_clamp(avx_dot(_mm256_loadu_ps(v.nx + k), _mm256_loadu_ps(v.ny + k),
-                                    _mm256_loadu_ps(v.nz + k), f.z), -1.0F, 1.0F);
-
-    // Volume.
-    const __m256 y_positive = _mm256_cmp_ps(y, zero, _CMP_GT_OQ);
-    const __m256 x_zero = _mm256_cmp_ps(x, zero, _CMP_EQ_OQ);
-    const __m256 bit4 = _mm256_and_ps(
-        one, _mm256_or_ps(y_positive, _mm256_and_ps(_mm256_cmp_ps(y, zero, _CMP_EQ_OQ),
-                                                    _mm256_cmp_ps(x, zero, _CMP_LT_OQ))));
-    const __m256 flip =
-        _mm256_or_ps(_mm256_cmp_ps(x, zero, _CMP_GT_OQ), _mm256_and_ps(x_zero, y_positive));
-    const __m256 bit3 = avx_select(flip, _mm256_sub_ps(one, bit4), bit4);
-    const __m256 ax = avx_abs(x);
-    const __m256 ay = avx_abs(y);
-    const __m256 same_sign = _mm256_or_ps(_mm256_cmp_ps(_mm256_mul_ps(x, y), zero, _CMP_GT_OQ), x_zero);
-    const __m256 diagonal = avx_select(same_sign, _mm256_and_ps(one, _mm256_cmp_ps(ax, ay, _CMP_LT_OQ)),
-                                   _mm256_and_ps(one, _mm256_cmp_ps(ax, ay, _CMP_GT_OQ)));
-    const __m256 sector = _mm256_add_ps(_mm256_add_ps(_mm256_mul_ps(_mm256_set1_ps(4.0F), bit4), _mm256_mul_ps(_mm256_set1_ps(2.0F), bit3)), diagonal);
-    const __m256 outer = _mm256_cmp_ps(distance, r12, _CMP_GT_OQ);
-    const __m256 volume =
-        _mm256_add_ps(_mm256_add_ps(_mm256_mul_ps(_mm256_set1_ps(4.0F), sector), _mm256_and_ps(one, _mm256_cmp_ps(z, zero, _CMP_GT_OQ))),
-            _mm256_and_ps(_mm256_set1_ps(2.0F), outer));
-
-    // Cosine bin.
-    const __m256 bin = _mm256_mul_ps(_mm256_add_ps(one, cosine), _mm256_set1_ps(0.5F * kBins));
-    const __m256 step = _mm256_cvtepi32_ps(_mm256_cvttps_epi32(_mm256_add_ps(bin, _mm256_set1_ps(0.5F))));
-    const __m256 volume_base = _mm256_mul_ps(volume, _mm256_set1_ps(kStrideF));
-    const __m256 own = _mm256_add_ps(volume_base, step);
-    const __m256 bin_distance = _mm256_sub_ps(bin, step);
-    __m256 weight = _mm256_sub_ps(one, avx_abs(bin_distance));
-    const __m256 next_raw = _mm256_add_ps(step, one);
-    const __m256 next = _mm256_sub_ps(next_raw, _mm256_and_ps(_mm256_set1_ps(kBins), _mm256_cmp_ps(next_raw, _mm256_set1_ps(kBins), _CMP_GE_OQ)));
-    const __m256 previous_raw = _mm256_add_ps(step, _mm256_set1_ps(kBins - 1.0F));
-    const __m256 previous =
-        _mm256_sub_ps(previous_raw, _mm256_and_ps(_mm256_set1_ps(kBins), _mm256_cmp_ps(previous_raw, _mm256_set1_ps(kBins), _CMP_GE_OQ)));
-    avx_store_bins(v.cosine + k,
-                   _mm256_add_ps(volume_base, avx_select(_mm256_cmp_ps(bin_distance, zero, _CMP_GT_OQ), next, previous)));
-    _mm256_storeu_ps(v.cosine_weight + k, avx_abs(bin_distance));
-
-    // Radial shell.
-    const __m256 radius_distance = _mm256_mul_ps(_mm256_sub_ps(distance, avx_select(outer, r34, r14)), inverse_r12);
-    weight = _mm256_add_ps(weight, _mm256_sub_ps(one, avx_abs(radius_distance)));
-    const __m256 radial_vote = avx_select(outer, _mm256_cmp_ps(radius_distance, zero, _CMP_LE_OQ),
-                                      _mm256_cmp_ps(radius_distance, zero, _CMP_GE_OQ));
-    avx_store_bins(v.radial + k,
-                   _mm256_add_ps(own, _mm256_and_ps(radial_vote, avx_select(outer, _mm256_set1_ps(-2.0F * kStrideF), _mm256_set1_ps(2.0F * kStrideF)))));
-    _mm256_storeu_ps(v.radial_weight + k, _mm256_and_ps(radial_vote, avx_abs(radius_distance)));
-
-    // Elevation.
-    const __m256 c = avx_clamp(_mm256_div_ps(z, distance), -1.0F, 1.0F);
-    const __m256 ac = avx_abs(c);
-    __m256 poly = _mm256_set1_ps(-0.0012624911F);
-    for (const float coefficient : {0.0066700901F, -0.0170881256F, 0.0308918810F, -0.0501743046F,
-                                    0.0889789874F, -0.2145988016F, 1.5707963050F}) {
-      poly = _mm256_add_ps(_mm256_set1_ps(coefficient), _mm256_mul_ps(ac, poly));
-    }
-    const __m256 arc = _mm256_mul_ps(_mm256_sqrt_ps(_mm256_sub_ps(one, ac)), poly);
-    const __m256 inclination = avx_select(_mm256_cmp_ps(c, zero, _CMP_GE_OQ), arc, _mm256_sub_ps(_mm256_set1_ps(kPif), arc));
-    const __m256 lower = _mm256_or_ps(
-        _mm256_cmp_ps(inclination, _mm256_set1_ps(kRad90f), _CMP_GT_OQ),
-        _mm256_and_ps(_mm256_cmp_ps(inclination, _mm256_set1_ps(kRad90f), _CMP_EQ_OQ), _mm256_cmp_ps(z, zero, _CMP_LE_OQ)));
-    const __m256 inclination_distance =
-        _mm256_mul_ps(_mm256_sub_ps(inclination, avx_select(lower, _mm256_set1_ps(kRad135f), _mm256_set1_ps(kRad45f))), _mm256_set1_ps(1.0F / kRad90f));
-    weight = _mm256_add_ps(weight, _mm256_sub_ps(one, avx_abs(inclination_distance)));
-    const __m256 elevation_vote = avx_select(lower, _mm256_cmp_ps(inclination_distance, zero, _CMP_LE_OQ),
-                                         _mm256_cmp_ps(inclination_distance, zero, _CMP_GE_OQ));
-    avx_store_bins(v.elevation + k,
-                   _mm256_add_ps(own, _mm256_and_ps(elevation_vote, avx_select(lower, _mm256_set1_ps(kStrideF), _mm256_set1_ps(-kStrideF)))));
-    _mm256_storeu_ps(v.elevation_weight + k, _mm256_and_ps(elevation_vote, avx_abs(inclination_distance)));
-
-    // Azimuth.
-    const __m256 defined = _mm256_or_ps(_mm256_cmp_ps(y, zero, _CMP_NEQ_UQ), _mm256_cmp_ps(x, zero, _CMP_NEQ_UQ));
-    const __m256 t = _mm256_div_ps(_mm256_min_ps(ax, ay), avx_select(defined, _mm256_max_ps(ax, ay), one));
-    const __m256 t2 = _mm256_mul_ps(t, t);
-    __m256 series = _mm256_set1_ps(-0.01172120F);
-    for (const float coefficient : {0.05265332F, -0.11643287F, 0.19354346F, -0.33262347F, 0.99997726F}) {
-      series = _mm256_add_ps(_mm256_set1_ps(coefficient), _mm256_mul_ps(t2, series));
-    }
-    __m256 azimuth = _mm256_mul_ps(t, series);
-    azimuth = avx_select(_mm256_cmp_ps(ay, ax, _CMP_GT_OQ), _mm256_sub_ps(_mm256_set1_ps(0.5F * kPif), azimuth), azimuth);
-    azimuth = avx_select(_mm256_cmp_ps(x, zero, _CMP_LT_OQ), _mm256_sub_ps(_mm256_set1_ps(kPif), azimuth), azimuth);
-    azimuth = avx_select(_mm256_cmp_ps(y, zero, _CMP_LT_OQ), _mm256_sub_ps(zero, azimuth), azimuth);
-    const __m256 azimuth_distance = avx_clamp(
-        _mm256_mul_ps(_mm256_sub_ps(azimuth, _mm256_add_ps(_mm256_set1_ps(-kRadPi78f), _mm256_mul_ps(_mm256_set1_ps(kRad45f), sector))), _mm256_set1_ps(1.0F / kRad45f)), -0.5F, 0.5F);
-    weight = _mm256_add_ps(weight, _mm256_and_ps(defined, _mm256_sub_ps(one, avx_abs(azimuth_distance))));
-    __m256 adjacent = _mm256_add_ps(volume, avx_select(_mm256_cmp_ps(azimuth_distance, zero, _CMP_GT_OQ), _mm256_set1_ps(4.0F),
-                                         _mm256_set1_ps(kVolumesF - 4.0F)));
-    adjacent = _mm256_sub_ps(adjacent, _mm256_and_ps(_mm256_set1_ps(kVolumesF), _mm256_cmp_ps(adjacent, _mm256_set1_ps(kVolumesF), _CMP_GE_OQ)));
-    avx_store_bins(v.azimuth + k, _mm256_add_ps(_mm256_mul_ps(adjacent, _mm256_set1_ps(kStrideF)), step));
-    _mm256_storeu_ps(v.azimuth_weight + k, _mm256_and_ps(defined, avx_abs(azimuth_distance)));
-
-    avx_store_bins(v.own + k, own);
-    _mm256_storeu_ps(v.own_weight + k, weight);
-  }
-}
-#endif
 }  // namespace
 
-bool ShotEstimator::cpu_has_avx2() {
-#ifdef RANKSLAM_GEOMETRY_HAVE_AVX2_SHOT
-  return parallel::cpu_has_avx2();
-#else
-  return false;
-#endif
-}
+bool ShotEstimator::has_vector_kernel() { return parallel::vector_kernels_enabled(); }
 
 void ShotEstimator::reserve(int max_support) {
   capacity_ = std::max(0, max_support);
@@ -475,23 +294,19 @@ ShotResult ShotEstimator::compute(const Eigen::Vector3f& center,
   // cosine bin, radial shell, elevation volume and azimuth sector (quadrilinear interpolation).
   // Their bins and weights are computed a block of neighbours at a time, without branches (PCL's
   // branches, as selects: a neighbour that PCL does not let vote for an adjacent volume votes 0
-  // into its own bin instead); only the scattered additions stay one neighbour at a time, 8
-  // neighbours at a time with AVX2 where the CPU has it.
+  // into its own bin instead); only the scattered additions stay one neighbour at a time. The
+  // vector kernel where the CPU has one, the portable loop otherwise: the same values.
   const VoteArrays arrays{dx_.data(), dy_.data(), dz_.data(), nx_.data(), ny_.data(), nz_.data(),
                           distance_.data(), own_.data(), own_weight_.data(), cosine_.data(),
                           cosine_weight_.data(), radial_.data(), radial_weight_.data(),
                           elevation_.data(), elevation_weight_.data(), azimuth_.data(),
                           azimuth_weight_.data()};
   const VoteFrame vote_frame{frame_x, frame_y, frame_z, radius_1_4, radius_1_2, radius_3_4};
-#ifdef RANKSLAM_GEOMETRY_HAVE_AVX2_SHOT
-  if (best_kernel_ && cpu_has_avx2()) {
-    vote_bins_avx2(arrays, vote_frame, padded_end);
+  if (best_kernel_ && has_vector_kernel()) {
+    vector::shot_vote_bins(arrays, vote_frame, padded_end);
   } else {
     vote_bins_portable(arrays, vote_frame, padded_end);
   }
-#else
-  vote_bins_portable(arrays, vote_frame, padded_end);
-#endif
 
   // The scattered votes, one neighbour at a time. The arrays are read through local pointers:
   // the compiler cannot tell that the descriptor's stores leave the vectors' own pointers alone,

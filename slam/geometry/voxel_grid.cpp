@@ -7,10 +7,7 @@
 #include <cmath>
 #include <cstdint>
 
-#if defined(__x86_64__) && defined(__GNUC__)
-#include <immintrin.h>
-#define RANKSLAM_GEOMETRY_HAVE_AVX2_ROWS 1
-#endif
+#include "vector_kernels.hpp"
 
 // The voxel grid of the cloud pre-processing: each band of image rows hashes its pixels' voxels
 // and sums their points (CloudPreprocessor::voxelise).
@@ -25,16 +22,7 @@ inline std::int32_t fast_floor(float v) {
   return static_cast<std::int32_t>(static_cast<double>(v) + kOffset) - 1048576;
 }
 
-// One image row of the voxel grid's pass: every pixel's camera-frame point and voxel
-// coordinates, z = 0 where the pixel is empty or outside the pass-through.
-struct RowPoints {
-  float* x;
-  float* y;
-  float* z;
-  std::int32_t* cell_x;
-  std::int32_t* cell_y;
-  std::int32_t* cell_z;
-};
+using vector::RowPoints;
 
 void prepare_row_portable(const std::uint16_t* raw, const float* ray_x, const float* ray_y, int width,
                           float metres_per_unit, float min_m, float max_m, float inverse_leaf,
@@ -53,42 +41,6 @@ void prepare_row_portable(const std::uint16_t* raw, const float* ray_x, const fl
   }
 }
 
-#ifdef RANKSLAM_GEOMETRY_HAVE_AVX2_ROWS
-// prepare_row_portable, 8 pixels at a time (AVX2, chosen at run time): the same products, and
-// the floor of the same float values, so the same points and voxels.
-__attribute__((target("avx2"))) void prepare_row_avx2(const std::uint16_t* raw, const float* ray_x,
-                                                      const float* ray_y, int width,
-                                                      float metres_per_unit, float min_m, float max_m,
-                                                      float inverse_leaf, const RowPoints& out) {
-  const __m256 scale = _mm256_set1_ps(metres_per_unit);
-  const __m256 lo = _mm256_set1_ps(min_m);
-  const __m256 hi = _mm256_set1_ps(max_m);
-  const __m256 inverse = _mm256_set1_ps(inverse_leaf);
-  const __m256 zero = _mm256_setzero_ps();
-  int u = 0;
-  for (; u + 8 <= width; u += 8) {
-    const __m256 raw_f = _mm256_cvtepi32_ps(
-        _mm256_cvtepu16_epi32(_mm_loadu_si128(reinterpret_cast<const __m128i*>(raw + u))));
-    const __m256 z = _mm256_mul_ps(raw_f, scale);
-    const __m256 valid =
-        _mm256_and_ps(_mm256_cmp_ps(raw_f, zero, _CMP_NEQ_OQ),
-                      _mm256_and_ps(_mm256_cmp_ps(z, lo, _CMP_GE_OQ), _mm256_cmp_ps(z, hi, _CMP_LE_OQ)));
-    const __m256 x = _mm256_mul_ps(_mm256_loadu_ps(ray_x + u), z);
-    const __m256 y = _mm256_mul_ps(_mm256_loadu_ps(ray_y + u), z);
-    _mm256_storeu_ps(out.x + u, x);
-    _mm256_storeu_ps(out.y + u, y);
-    _mm256_storeu_ps(out.z + u, _mm256_and_ps(valid, z));
-    const __m256i mask = _mm256_castps_si256(valid);
-    _mm256_storeu_si256(reinterpret_cast<__m256i*>(out.cell_x + u),
-                        _mm256_and_si256(mask, _mm256_cvttps_epi32(_mm256_floor_ps(_mm256_mul_ps(x, inverse)))));
-    _mm256_storeu_si256(reinterpret_cast<__m256i*>(out.cell_y + u),
-                        _mm256_and_si256(mask, _mm256_cvttps_epi32(_mm256_floor_ps(_mm256_mul_ps(y, inverse)))));
-    _mm256_storeu_si256(reinterpret_cast<__m256i*>(out.cell_z + u),
-                        _mm256_and_si256(mask, _mm256_cvttps_epi32(_mm256_floor_ps(_mm256_mul_ps(z, inverse)))));
-  }
-  prepare_row_portable(raw, ray_x, ray_y, width, metres_per_unit, min_m, max_m, inverse_leaf, out, u);
-}
-#endif
 
 
 }  // namespace
@@ -182,9 +134,7 @@ bool CloudPreprocessor::voxelise_rows(const cv::Mat& depth, float leaf_m, int ro
   const float metres_per_unit = camera_.metres(1);
   const auto min_m = static_cast<float>(config_.min_depth_m);
   const auto max_m = static_cast<float>(config_.max_depth_m);
-#ifdef RANKSLAM_GEOMETRY_HAVE_AVX2_ROWS
-  const bool avx2 = parallel::cpu_has_avx2();
-#endif
+  const bool vector_rows = parallel::vector_kernels_enabled();
   const RowPoints row_points{band.row_x.data(), band.row_y.data(), band.row_z.data(),
                              band.row_cell_x.data(), band.row_cell_y.data(), band.row_cell_z.data()};
   for (int v = row_begin; v < row_end; ++v) {
@@ -192,18 +142,12 @@ bool CloudPreprocessor::voxelise_rows(const cv::Mat& depth, float leaf_m, int ro
     // The points and voxel coordinates of the row first (vectorised where the CPU allows),
     // then the hashing and sums, which depend on the previous pixel's voxel.
     const std::size_t row_start = static_cast<std::size_t>(v) * static_cast<std::size_t>(depth.cols);
-#ifdef RANKSLAM_GEOMETRY_HAVE_AVX2_ROWS
-    if (avx2) {
-      prepare_row_avx2(row, ray_x_.data() + row_start, ray_y_.data() + row_start, depth.cols,
-                       metres_per_unit, min_m, max_m, inverse_leaf, row_points);
-    } else {
-      prepare_row_portable(row, ray_x_.data() + row_start, ray_y_.data() + row_start, depth.cols,
-                           metres_per_unit, min_m, max_m, inverse_leaf, row_points);
-    }
-#else
-    prepare_row_portable(row, ray_x_.data() + row_start, ray_y_.data() + row_start, depth.cols,
-                         metres_per_unit, min_m, max_m, inverse_leaf, row_points);
-#endif
+    const int done = vector_rows ? vector::prepare_row(row, ray_x_.data() + row_start, ray_y_.data() + row_start,
+                                                       depth.cols, metres_per_unit, min_m, max_m, inverse_leaf,
+                                                       row_points)
+                                 : 0;
+    prepare_row_portable(row, ray_x_.data() + row_start, ray_y_.data() + row_start, depth.cols, metres_per_unit,
+                         min_m, max_m, inverse_leaf, row_points, done);
     block_sums_.add_row(band.row_x.data(), band.row_y.data(), band.row_z.data(), depth.cols,
                         v / BlockImage::kBlock);
     // Runs of valid pixels in one voxel, each summed on its own and then added to the voxel:

@@ -5,10 +5,7 @@
 #include <algorithm>
 #include <cmath>
 
-#if defined(__x86_64__) && defined(__GNUC__)
-#include <immintrin.h>
-#define RANKSLAM_ROBUST_HAVE_AVX2_ORIENTATION 1
-#endif
+#include "vector_kernels.hpp"
 
 namespace rankslam::robust {
 
@@ -86,52 +83,16 @@ void OrientationModel::selection_scores(const Params& direction, int begin, int 
              direction.z() * normals_.col(2).segment(begin, count).array());
 }
 
-namespace {
-
-#ifdef RANKSLAM_ROBUST_HAVE_AVX2_ORIENTATION
-// OrientationModel::scaled_selection_scores 4 normals at a time (AVX2, chosen at run time):
-// 1 − ((d_x·n_x + d_y·n_y) + d_z·n_z) as Eigen evaluates selection_scores' expression, without
-// FMA, so the same values. Returns the count below `bound` of the whole blocks of 4; `done` is
-// how many normals those covered.
-__attribute__((target("avx2"))) int orientation_scores_avx2(const double* nx, const double* ny,
-                                                            const double* nz,
-                                                            const Eigen::Vector3d& direction,
-                                                            int count, const double* inverse_variances,
-                                                            double bound, double* out, int& done) {
-  const __m256d dx = _mm256_set1_pd(direction.x());
-  const __m256d dy = _mm256_set1_pd(direction.y());
-  const __m256d dz = _mm256_set1_pd(direction.z());
-  const __m256d one = _mm256_set1_pd(1.0);
-  const __m256d limit = _mm256_set1_pd(bound);
-  int below = 0;
-  int i = 0;
-  for (; i + 4 <= count; i += 4) {
-    __m256d dot = _mm256_add_pd(_mm256_mul_pd(dx, _mm256_loadu_pd(nx + i)), _mm256_mul_pd(dy, _mm256_loadu_pd(ny + i)));
-    dot = _mm256_add_pd(dot, _mm256_mul_pd(dz, _mm256_loadu_pd(nz + i)));
-    __m256d score = _mm256_sub_pd(one, dot);
-    if (inverse_variances != nullptr) score = _mm256_mul_pd(score, _mm256_loadu_pd(inverse_variances + i));
-    _mm256_storeu_pd(out + i, score);
-    below += __builtin_popcount(static_cast<unsigned>(_mm256_movemask_pd(_mm256_cmp_pd(score, limit, _CMP_LT_OQ))));
-  }
-  done = i;
-  return below;
-}
-#endif
-
-}  // namespace
-
 int OrientationModel::scaled_selection_scores(const Params& direction, int begin, int count,
                                               const double* inverse_variances, double bound,
                                               double* out) const {
   int done = 0;
   int below = 0;
-#ifdef RANKSLAM_ROBUST_HAVE_AVX2_ORIENTATION
-  if (parallel::cpu_has_avx2()) {
-    below = orientation_scores_avx2(normals_.col(0).data() + begin, normals_.col(1).data() + begin,
-                                    normals_.col(2).data() + begin, direction, count,
-                                    inverse_variances, bound, out, done);
+  if (parallel::vector_kernels_enabled()) {
+    below = vector::orientation_scores(normals_.col(0).data() + begin, normals_.col(1).data() + begin,
+                                       normals_.col(2).data() + begin, direction, count, inverse_variances,
+                                       bound, out, done);
   }
-#endif
   if (done < count) {
     const int rest = count - done;
     double* values = out + done;

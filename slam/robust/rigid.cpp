@@ -9,10 +9,7 @@
 #include <Eigen/Eigenvalues>
 #include <Eigen/SVD>
 
-#if defined(__x86_64__) && defined(__GNUC__)
-#include <immintrin.h>
-#define RANKSLAM_ROBUST_HAVE_AVX2_SCORES 1
-#endif
+#include "vector_kernels.hpp"
 
 namespace rankslam::robust {
 namespace {
@@ -359,76 +356,19 @@ void RigidModel::selection_scores(const Params& T_t_s, int begin, int count, dou
   }
 }
 
-namespace {
-
-#ifdef RANKSLAM_ROBUST_HAVE_AVX2_SCORES
-// RigidModel::scaled_selection_scores, 8 points at a time (AVX2, chosen at run time): the float
-// expression of selection_scores with its operations in the same order (no FMA), widened to
-// double and scaled as there, so the same values. Returns the count below `bound`; `done` is
-// how many points it handled (a multiple of 8), the rest is left to the portable loop.
-__attribute__((target("avx2"))) int scaled_scores_avx2(const float* sx, const float* sy,
-                                                       const float* sz, const float* dx,
-                                                       const float* dy, const float* dz,
-                                                       const Eigen::Matrix3f& r,
-                                                       const Eigen::Vector3f& t, int count,
-                                                       const double* inverse_variances,
-                                                       double bound, double* out, int& done) {
-  __m256 rotation[9];
-  for (int row = 0; row < 3; ++row) {
-    for (int col = 0; col < 3; ++col) rotation[3 * row + col] = _mm256_set1_ps(r(row, col));
-  }
-  const __m256 translation[3] = {_mm256_set1_ps(t.x()), _mm256_set1_ps(t.y()), _mm256_set1_ps(t.z())};
-  const __m256d limit = _mm256_set1_pd(bound);
-  int below = 0;
-  int i = 0;
-  for (; i + 8 <= count; i += 8) {
-    const __m256 x = _mm256_loadu_ps(sx + i);
-    const __m256 y = _mm256_loadu_ps(sy + i);
-    const __m256 z = _mm256_loadu_ps(sz + i);
-    const float* const target[3] = {dx + i, dy + i, dz + i};
-    __m256 sum = _mm256_setzero_ps();
-    for (int row = 0; row < 3; ++row) {
-      // ((r0·x + r1·y) + r2·z + t) − d, squared, as Eigen evaluates the expression.
-      __m256 e = _mm256_add_ps(_mm256_mul_ps(rotation[3 * row], x), _mm256_mul_ps(rotation[3 * row + 1], y));
-      e = _mm256_add_ps(e, _mm256_mul_ps(rotation[3 * row + 2], z));
-      e = _mm256_add_ps(e, translation[row]);
-      e = _mm256_sub_ps(e, _mm256_loadu_ps(target[row]));
-      const __m256 square = _mm256_mul_ps(e, e);
-      sum = row == 0 ? square : _mm256_add_ps(sum, square);
-    }
-    __m256d low = _mm256_cvtps_pd(_mm256_castps256_ps128(sum));
-    __m256d high = _mm256_cvtps_pd(_mm256_extractf128_ps(sum, 1));
-    if (inverse_variances != nullptr) {
-      low = _mm256_mul_pd(low, _mm256_loadu_pd(inverse_variances + i));
-      high = _mm256_mul_pd(high, _mm256_loadu_pd(inverse_variances + i + 4));
-    }
-    _mm256_storeu_pd(out + i, low);
-    _mm256_storeu_pd(out + i + 4, high);
-    below += __builtin_popcount(static_cast<unsigned>(_mm256_movemask_pd(_mm256_cmp_pd(low, limit, _CMP_LT_OQ)))) +
-             __builtin_popcount(static_cast<unsigned>(_mm256_movemask_pd(_mm256_cmp_pd(high, limit, _CMP_LT_OQ))));
-  }
-  done = i;
-  return below;
-}
-#endif
-
-}  // namespace
-
 int RigidModel::scaled_selection_scores(const Params& T_t_s, int begin, int count,
                                         const double* inverse_variances, double bound,
                                         double* out) const {
   int done = 0;
   int below = 0;
-#ifdef RANKSLAM_ROBUST_HAVE_AVX2_SCORES
-  if (parallel::cpu_has_avx2()) {
+  if (parallel::vector_kernels_enabled()) {
     const Eigen::Matrix3f r = T_t_s.linear().cast<float>();
     const Eigen::Vector3f t = T_t_s.translation().cast<float>();
-    below = scaled_scores_avx2(src_f_.col(0).data() + begin, src_f_.col(1).data() + begin,
-                               src_f_.col(2).data() + begin, dst_f_.col(0).data() + begin,
-                               dst_f_.col(1).data() + begin, dst_f_.col(2).data() + begin, r, t,
-                               count, inverse_variances, bound, out, done);
+    below = vector::rigid_scores(src_f_.col(0).data() + begin, src_f_.col(1).data() + begin,
+                                 src_f_.col(2).data() + begin, dst_f_.col(0).data() + begin,
+                                 dst_f_.col(1).data() + begin, dst_f_.col(2).data() + begin, r, t, count,
+                                 inverse_variances, bound, out, done);
   }
-#endif
   if (done < count) {
     const int rest = count - done;
     double* values = out + done;

@@ -213,7 +213,7 @@ void BM_MatchExhaustive(benchmark::State& state) {
     benchmark::DoNotOptimize(matches);
   }
   state.counters["matches"] = matches;
-  state.counters["avx2"] = matcher.uses_avx2() ? 1 : 0;
+  state.counters["vector"] = matcher.uses_vector_kernel() ? 1 : 0;
   state.counters["vnni"] = matcher.uses_vnni() ? 1 : 0;
   state.SetLabel(std::to_string(d.na) + "x" + std::to_string(d.nb));
 }

@@ -16,6 +16,7 @@
 #include <nanoflann.hpp>
 
 #include "rankslam/geometry/cloud.hpp"
+#include "rankslam/parallel/cpu_features.hpp"
 #include "rankslam/camera/depth_camera.hpp"
 #include "test_data.hpp"
 
@@ -139,14 +140,10 @@ TEST(Normals, AgreeWithDensePcaOnRealFrames) {
   }
 }
 
-// The AVX2 window sums (where the CPU has it) against the portable loop that other CPUs run:
-// the same normals up to float summation order.
-TEST(Normals, PortableAndAvx2WindowSumsAgree) {
-#if defined(__x86_64__) && defined(__GNUC__)
-  if (!__builtin_cpu_supports("avx2")) GTEST_SKIP() << "no AVX2: only the portable loop runs here";
-#else
-  GTEST_SKIP() << "not x86-64: only the portable loop runs here";
-#endif
+// The vector kernel's window sums (Highway, where the CPU has a vector target) against the
+// portable loop: the same normals up to float summation order and fused multiply-adds.
+TEST(Normals, PortableAndVectorWindowSumsAgree) {
+  if (!parallel::vector_kernels_enabled()) GTEST_SKIP() << "no vector target: only the portable loop runs here";
   hal::Calibration calibration;
   std::string error;
   const auto frames = testing::simulated_depth_frames("office", 30, 1, true, calibration, error);
@@ -174,7 +171,8 @@ TEST(Normals, PortableAndAvx2WindowSumsAgree) {
     difference.push_back(angle_deg(best.cast<double>(), portable.cast<double>()));
   }
   std::sort(difference.begin(), difference.end());
-  std::printf("AVX2 vs portable window sums: %zu normals, median %.2g°, max %.2g°\n", difference.size(),
+  std::printf("%s vs portable window sums: %zu normals, median %.2g°, max %.2g°\n",
+              parallel::vector_target().c_str(), difference.size(),
               difference[difference.size() / 2], difference.back());
   EXPECT_LE(difference.back(), 0.1);
 }

@@ -102,9 +102,10 @@ struct BlockImage {
 /// samples_per_axis blocks per axis: wider windows are strided), oriented toward the camera.
 /// fx: focal length [px]. Returns the number of dense points used (weighted; the normal is
 /// untouched below 3). Exposed for tests; CloudPreprocessor calls it for every voxel.
-/// best_kernel: sum the window 8 blocks at a time with AVX2 and FMA when the CPU has them
-/// (false: the portable 4-block loop; the two differ only by float rounding, the order of the
-/// sums and the fused multiply-adds, and tests compare them).
+/// best_kernel: sum the window with the vector kernel (Highway: up to 8 blocks at a time, fused
+/// multiply-adds) where parallel::vector_kernels_enabled() (false: the portable 4-block loop;
+/// the two differ only by float rounding, the order of the sums and the fused multiply-adds, and
+/// tests compare them).
 int organised_normal(const BlockImage& blocks, float fx, const Eigen::Vector3f& center,
                      const Eigen::Vector2f& pixel, float radius_m, int samples_per_axis,
                      Eigen::Vector3f& normal, float* curvature = nullptr, bool best_kernel = true);
@@ -158,7 +159,7 @@ class CloudPreprocessor {
     void reserve(int blocks_per_row, int block_rows);
     void clear();
     /// Adds one image row's points (z = 0: no point) to the blocks of its block row, each block's
-    /// points in pixel order (8 blocks at a time with AVX2 where the CPU has it).
+    /// points in pixel order (a vector of blocks at a time where the CPU has a vector target).
     void add_row(const float* x, const float* y, const float* z, int width, int block_row);
   };
   struct Accumulator {
@@ -180,8 +181,8 @@ class CloudPreprocessor {
   static constexpr std::size_t kFirstSlots = 4096;
   // The voxel grid of one band of image rows: its own hash table (its first mask + 1 slots in
   // use), voxels numbered in the order they first appear in the band, their sums and cells, and
-  // one row's points and voxel coordinates (z = 0: no point), filled a row at a time (8 pixels
-  // at a time with AVX2) before the hashing pass.
+  // one row's points and voxel coordinates (z = 0: no point), filled a row at a time (a vector
+  // of pixels at a time) before the hashing pass.
   struct VoxelBand {
     std::uint32_t generation = 0;
     std::size_t mask = 0;

@@ -4,8 +4,8 @@
 // (a, b) is kept when b is a's nearest neighbour among B and a is b's among A.
 //
 // Exhaustive, not a tree: for unit vectors ‖a − b‖² = 2 − 2·a·b, so both nearest-neighbour
-// directions come from one pass over the dot products, computed in register blocks (AVX2 + FMA
-// when the CPU has it, chosen at run time; portable code otherwise). For ~400 × 400 SHOT
+// directions come from one pass over the dot products, computed in register blocks (the vector
+// kernel where the CPU has a vector target, chosen at run time; portable code otherwise). For ~400 × 400 SHOT
 // descriptors this measures several times faster than nanoflann's k-d tree in 352 dimensions,
 // where a tree degenerates to visiting most leaves (test/perf/geometry, BM_Match*).
 //
@@ -35,8 +35,8 @@ struct DescriptorMatch {
 class DescriptorMatcher {
  public:
   enum class Kernel : std::uint8_t {
-    kBest,      ///< The 8-bit pass where it applies, else AVX2 + FMA where the CPU has it, else portable.
-    kFloat,     ///< AVX2 + FMA where the CPU has it, else portable: the same matches as kBest.
+    kBest,      ///< The 8-bit pass where it applies, else the vector kernel where the CPU has one, else portable.
+    kFloat,     ///< The vector kernel where the CPU has one, else portable: the same matches as kBest.
     kPortable,  ///< Eigen fixed-size packets (SSE2 / NEON) only.
   };
 
@@ -53,10 +53,10 @@ class DescriptorMatcher {
   int match(const float* a, int count_a, const float* b, int count_b,
             std::span<DescriptorMatch> out);
 
-  /// True when this CPU can run the AVX2 + FMA kernel.
-  [[nodiscard]] static bool cpu_has_avx2();
-  /// True when this matcher uses the AVX2 + FMA kernel.
-  [[nodiscard]] bool uses_avx2() const { return use_avx2_; }
+  /// True when this CPU runs the vector kernel (parallel::vector_kernels_enabled()).
+  [[nodiscard]] static bool has_vector_kernel();
+  /// True when this matcher uses the vector kernel.
+  [[nodiscard]] bool uses_vector_kernel() const { return use_vector_; }
   /// True when this CPU can run the 8-bit (AVX-512 VNNI) pass.
   [[nodiscard]] static bool cpu_has_vnni();
   /// True when this matcher runs the 8-bit pass on non-negative descriptors.
@@ -72,7 +72,7 @@ class DescriptorMatcher {
   void merge_column_bests(int count_b);
 
   int capacity_ = 0;
-  bool use_avx2_ = false;
+  bool use_vector_ = false;
   bool use_vnni_ = false;
   int dimension_ = 0;
   parallel::ThreadTeam* team_ = nullptr;

@@ -125,7 +125,7 @@ class PointGrid {
   }
   /// The points at sorted positions [begin, begin + count) within r2 of q (squared distance
   /// ≤ r2), in order: their indices and squared distances into the outputs; returns how many.
-  /// From the coordinates kept in sorted order, 8 at a time with AVX2 where the CPU has it.
+  /// From the coordinates kept in sorted order, a vector at a time where the CPU has a vector target.
   int within_radius(const Eigen::Vector3f& q, float r2, int begin, int count, int* indices,
                     float* squared_distances) const;
   static constexpr int kRadiusChunk = 64;

@@ -45,12 +45,12 @@ class ShotEstimator {
   /// Set-up (allocates): room for up to max_support support points per descriptor.
   void reserve(int max_support);
 
-  /// True (the default) uses the AVX2 kernel for the per-neighbour geometry when the CPU has it;
-  /// false always uses the portable one (both give the same descriptors up to rounding; tests
+  /// True (the default) uses the vector kernel (Highway) for the per-neighbour geometry where
+  /// the CPU has one; false always uses the portable loop (both give the same descriptors; tests
   /// compare them).
   void use_best_kernel(bool best) { best_kernel_ = best; }
-  /// True when this CPU can run the AVX2 kernel.
-  [[nodiscard]] static bool cpu_has_avx2();
+  /// True when this CPU runs the vector kernel (parallel::vector_kernels_enabled()).
+  [[nodiscard]] static bool has_vector_kernel();
 
   /// Per keypoint, no allocation: the SHOT of `center` over the support points (with unit
   /// normals) within radius_m, found through `grid` (built over `points`, any cell size; a cell
@@ -69,7 +69,7 @@ class ShotEstimator {
   int count_ = 0;  // support points other than the keypoint itself (distance > 0)
   // The support as structure of arrays, padded to whole blocks of 8, so that the per-neighbour
   // geometry (LRF coordinates, arc functions, the bins and weights of the votes) runs 8
-  // neighbours at a time (AVX2, chosen at run time); only the additions into the histogram,
+  // neighbours at a time (vector kernel, chosen at run time); only the additions into the histogram,
   // scattered by nature, stay one at a time. SHOT per frame on fr1_rpy_head (perf_geometry, about
   // 300 support points per keypoint): 7.4 ms with one neighbour at a time and branches, 4.0 ms
   // so, 3.3 ms with the LRF's sign votes as a plain loop (Eigen's boolean-array casts are scalar).

@@ -2,6 +2,7 @@
 
 #include <cstdlib>
 #include <cstring>
+#include <string>
 
 namespace rankslam::parallel {
 
@@ -16,9 +17,18 @@ inline bool portable_kernels_forced() {
   return forced;
 }
 
-/// The CPU runs AVX2 (asked once). Vector kernels are compiled with target("avx2") beside their
-/// portable loops and chosen at run time by this, so one x86-64 build serves every CPU. False
-/// where there is no such kernel (arm64, other compilers) or portable_kernels_forced().
+/// The portable SIMD kernels (Highway, written once for every vector unit: SSE4, AVX2, AVX-512,
+/// NEON) run a vector target on this CPU: dispatched at run time to the best one it has, false
+/// where that is none or portable_kernels_forced(). Their callers run their portable loops then.
+bool vector_kernels_enabled();
+
+/// The target vector_kernels_enabled() dispatches to, lower case as Highway names it ("avx2",
+/// "avx3_dl", "neon"), or "portable".
+std::string vector_target();
+
+/// The CPU runs AVX2 (asked once), for the x86-only kernels compiled with target("avx2") beside
+/// the Highway ones (SHOT matching's AVX-512 VNNI pass). False where there is no such kernel
+/// (arm64, other compilers) or portable_kernels_forced().
 inline bool cpu_has_avx2() {
 #if defined(__x86_64__) && defined(__GNUC__)
   static const bool has = __builtin_cpu_supports("avx2") && !portable_kernels_forced();

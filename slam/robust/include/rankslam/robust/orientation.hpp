@@ -44,8 +44,8 @@ class OrientationModel {
   void squared_residuals(const Params& direction, int begin, int count, double* out) const;
   void selection_scores(const Params& direction, int begin, int count, double* out) const;
   /// selection_scores (each multiplied by inverse_variances[i − begin] when that is not null)
-  /// into out; returns how many are below `bound`. The same values in one pass (4 at a time with
-  /// AVX2 where the CPU has it).
+  /// into out; returns how many are below `bound`. The same values in one pass (a vector at a
+  /// time where the CPU has a vector target).
   int scaled_selection_scores(const Params& direction, int begin, int count,
                               const double* inverse_variances, double bound, double* out) const;
   /// Inverse of the score mapping: arccos(1 − score)².

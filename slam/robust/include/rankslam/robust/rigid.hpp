@@ -126,8 +126,8 @@ class RigidModel {
   void selection_scores(const Params& T_t_s, int begin, int count, double* out) const;
   /// selection_scores, each multiplied by inverse_variances[i − begin] when that is not null
   /// (the per-point 1/σ² normalisation), into out; returns how many are below `bound`. The same
-  /// values as selection_scores followed by the scaling, in one pass over the points (8 at a
-  /// time with AVX2 where the CPU has it): ranking the hypotheses is most of an MSSE.
+  /// values as selection_scores followed by the scaling, in one pass over the points (a vector at
+  /// a time where the CPU has a vector target): ranking the hypotheses is most of an MSSE.
   int scaled_selection_scores(const Params& T_t_s, int begin, int count,
                               const double* inverse_variances, double bound, double* out) const;
 
