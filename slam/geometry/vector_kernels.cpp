@@ -1,7 +1,7 @@
 // The geometry front-end's Highway kernels (vector_kernels.hpp). foreach_target.h compiles this
 // file once per vector target; the HWY_ONCE part at the end dispatches to the CPU's best one.
-// Built with -ffp-contract=off: only the explicit MulAdd fuses, so every other product rounds
-// as in the portable loops.
+// The project builds with -ffp-contract=off: only the explicit MulAdd fuses, so every other
+// product rounds as in the portable loops.
 #include "vector_kernels.hpp"
 
 #include <algorithm>

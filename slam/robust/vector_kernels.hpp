@@ -2,8 +2,8 @@
 
 // The robust models' SIMD kernels, written once with Highway for every vector unit and
 // dispatched at run time to the best one this CPU has (callers use them where
-// parallel::vector_kernels_enabled()). Built without contraction into fused multiply-adds, so
-// each gives its model's portable expression's values bit for bit.
+// parallel::vector_kernels_enabled()). Without fused multiply-adds (the project builds with
+// -ffp-contract=off), each gives its model's portable expression's values bit for bit.
 
 #include <Eigen/Core>
 
