@@ -275,8 +275,8 @@ bool sums_in_sequence(int i, int na, int j, int nb) {
 bool DescriptorMatcher::cpu_has_vnni() {
 #ifdef RANKSLAM_GEOMETRY_HAVE_VNNI_PASS
   // Its candidates' exact values are the vector kernel's sums.
-  static const bool has = parallel::vector_kernels_enabled() && parallel::cpu_has_avx2_fma() &&
-                          __builtin_cpu_supports("avx512f") &&
+  static const bool has = parallel::vector_kernels_enabled() && __builtin_cpu_supports("avx2") &&
+                          __builtin_cpu_supports("fma") && __builtin_cpu_supports("avx512f") &&
                           __builtin_cpu_supports("avx512vl") && __builtin_cpu_supports("avx512vnni");
   return has;
 #else

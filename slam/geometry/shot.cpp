@@ -15,14 +15,9 @@ namespace rankslam::geometry {
 
 namespace {
 
-using vector::kRad135;
-using vector::kRad45;
-using vector::kRad90;
-using vector::kRadPi78;
 using vector::VoteArrays;
 using vector::VoteConstants;
 using vector::VoteFrame;
-constexpr int kStride = vector::kShotStride;  // values per volume
 // PCL's sign tie-break looks at this many neighbours around the median distance.
 constexpr int kTieBreakPoints = 5;
 

@@ -251,20 +251,13 @@ void ShotVoteBins(const VoteArrays& v, const VoteFrame& f, int end) {
 
 // --- Descriptor matching --------------------------------------------------------------------
 
-// The products past the last whole vector, one at a time.
-HWY_INLINE float Tail(const float* x, const float* y, int from, int dim) {
-  float s = 0.0F;
-  for (int k = from; k < dim; ++k) s += x[k] * y[k];
-  return s;
-}
-
 float DotInLanes(const float* x, const float* y, int dim) {
   const D d;
   const int lanes = static_cast<int>(hn::Lanes(d));
   const int vector_end = dim - dim % lanes;
   V s = hn::Zero(d);
   for (int k = 0; k < vector_end; k += lanes) s = hn::MulAdd(hn::LoadU(d, x + k), hn::LoadU(d, y + k), s);
-  return Sum(d, s) + Tail(x, y, vector_end, dim);
+  return Sum(d, s) + dot_in_sequence(x, y, dim, vector_end);
 }
 
 // 4 × 3 blocks: 12 accumulators, 3 rows of B and one of A in registers (16 of AVX2's 16), so
@@ -310,22 +303,22 @@ void ScanDotProducts(const float* a, int na, const float* b, int nb, int dim, Be
         s31 = hn::MulAdd(x, y1, s31);
         s32 = hn::MulAdd(x, y2, s32);
       }
-      update(best, i, j, Sum(d, s00) + Tail(a0, b0, vector_end, dim));
-      update(best, i, j + 1, Sum(d, s01) + Tail(a0, b1, vector_end, dim));
-      update(best, i, j + 2, Sum(d, s02) + Tail(a0, b2, vector_end, dim));
-      update(best, i + 1, j, Sum(d, s10) + Tail(a1, b0, vector_end, dim));
-      update(best, i + 1, j + 1, Sum(d, s11) + Tail(a1, b1, vector_end, dim));
-      update(best, i + 1, j + 2, Sum(d, s12) + Tail(a1, b2, vector_end, dim));
-      update(best, i + 2, j, Sum(d, s20) + Tail(a2, b0, vector_end, dim));
-      update(best, i + 2, j + 1, Sum(d, s21) + Tail(a2, b1, vector_end, dim));
-      update(best, i + 2, j + 2, Sum(d, s22) + Tail(a2, b2, vector_end, dim));
-      update(best, i + 3, j, Sum(d, s30) + Tail(a3, b0, vector_end, dim));
-      update(best, i + 3, j + 1, Sum(d, s31) + Tail(a3, b1, vector_end, dim));
-      update(best, i + 3, j + 2, Sum(d, s32) + Tail(a3, b2, vector_end, dim));
+      update(best, i, j, Sum(d, s00) + dot_in_sequence(a0, b0, dim, vector_end));
+      update(best, i, j + 1, Sum(d, s01) + dot_in_sequence(a0, b1, dim, vector_end));
+      update(best, i, j + 2, Sum(d, s02) + dot_in_sequence(a0, b2, dim, vector_end));
+      update(best, i + 1, j, Sum(d, s10) + dot_in_sequence(a1, b0, dim, vector_end));
+      update(best, i + 1, j + 1, Sum(d, s11) + dot_in_sequence(a1, b1, dim, vector_end));
+      update(best, i + 1, j + 2, Sum(d, s12) + dot_in_sequence(a1, b2, dim, vector_end));
+      update(best, i + 2, j, Sum(d, s20) + dot_in_sequence(a2, b0, dim, vector_end));
+      update(best, i + 2, j + 1, Sum(d, s21) + dot_in_sequence(a2, b1, dim, vector_end));
+      update(best, i + 2, j + 2, Sum(d, s22) + dot_in_sequence(a2, b2, dim, vector_end));
+      update(best, i + 3, j, Sum(d, s30) + dot_in_sequence(a3, b0, dim, vector_end));
+      update(best, i + 3, j + 1, Sum(d, s31) + dot_in_sequence(a3, b1, dim, vector_end));
+      update(best, i + 3, j + 2, Sum(d, s32) + dot_in_sequence(a3, b2, dim, vector_end));
     }
     for (; j < nb; ++j) {
       const float* b0 = row(b, j);
-      for (int r = 0; r < 4; ++r) update(best, i + r, j, Tail(a0 + static_cast<std::ptrdiff_t>(r) * dim, b0, 0, dim));
+      for (int r = 0; r < 4; ++r) update(best, i + r, j, dot_in_sequence(a0 + static_cast<std::ptrdiff_t>(r) * dim, b0, dim));
     }
   }
   for (; i < na; ++i) {
@@ -540,11 +533,6 @@ void gather_run(const float* xs, const float* ys, const float* zs, const int* in
   HWY_DYNAMIC_DISPATCH(GatherRun)(xs, ys, zs, indices, q, r2, count, out, written, support);
 }
 
-float dot_in_sequence(const float* x, const float* y, int dim) {
-  float s = 0.0F;
-  for (int k = 0; k < dim; ++k) s += x[k] * y[k];
-  return s;
-}
 
 }  // namespace rankslam::geometry::vector
 #endif

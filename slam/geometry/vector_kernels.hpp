@@ -15,6 +15,8 @@
 #include "rankslam/geometry/point_grid.hpp"
 #include "rankslam/geometry/shot.hpp"
 
+#include "fast_math.hpp"
+
 namespace rankslam::geometry::vector {
 
 // --- Normals --------------------------------------------------------------------------------
@@ -41,22 +43,16 @@ inline void window_row(const BlockImage& blocks, int bu, int bv, float half_bloc
 
 // --- SHOT votes -----------------------------------------------------------------------------
 
-inline constexpr double kRad45 = 0.78539816339744830961566084581988;
-inline constexpr double kRad90 = 1.5707963267948966192313216916398;
-inline constexpr double kRad135 = 2.3561944901923449288469825374596;
-inline constexpr double kRadPi78 = 2.7488935718910690836548129603691;
-inline constexpr int kShotStride = kShotCosineBins + 1;  // values per volume
-
 /// The votes' constants in float, as both the vector kernel and the portable loop use them.
 struct VoteConstants {
-  static constexpr auto kStride = static_cast<float>(kShotStride);
+  static constexpr auto kStride = static_cast<float>(kShotCosineBins + 1);  // values per volume
   static constexpr auto kBins = static_cast<float>(kShotCosineBins);
   static constexpr auto kVolumes = static_cast<float>(kShotVolumes);
-  static constexpr auto kPi = static_cast<float>(3.14159265358979323846);
-  static constexpr auto kRad45 = static_cast<float>(vector::kRad45);
-  static constexpr auto kRad90 = static_cast<float>(vector::kRad90);
-  static constexpr auto kRad135 = static_cast<float>(vector::kRad135);
-  static constexpr auto kRadPi78 = static_cast<float>(vector::kRadPi78);
+  static constexpr auto kPi = static_cast<float>(detail::kPi);
+  static constexpr auto kRad45 = static_cast<float>(0.78539816339744830961566084581988);
+  static constexpr auto kRad90 = static_cast<float>(1.5707963267948966192313216916398);
+  static constexpr auto kRad135 = static_cast<float>(2.3561944901923449288469825374596);
+  static constexpr auto kRadPi78 = static_cast<float>(2.7488935718910690836548129603691);
   static constexpr float kInverseRad45 = 1.0F / kRad45;
   static constexpr float kInverseRad90 = 1.0F / kRad90;
 };
@@ -126,8 +122,13 @@ void scan_dot_products(const float* a, int na, const float* b, int nb, int dim, 
 /// One dot product summed as scan_dot_products sums it outside its blocks' last columns.
 float dot_in_lanes(const float* x, const float* y, int dim);
 
-/// One dot product summed as scan_dot_products sums its blocks' last columns: in sequence.
-float dot_in_sequence(const float* x, const float* y, int dim);
+/// Products from..dim−1 summed one at a time: a dot product as scan_dot_products sums its blocks'
+/// last columns (from 0), and the tails past its vectors.
+inline float dot_in_sequence(const float* x, const float* y, int dim, int from = 0) {
+  float s = 0.0F;
+  for (int k = from; k < dim; ++k) s += x[k] * y[k];
+  return s;
+}
 
 // --- Cloud pre-processing -------------------------------------------------------------------
 

@@ -26,26 +26,4 @@ bool vector_kernels_enabled();
 /// "avx3_dl", "neon"), or "portable".
 std::string vector_target();
 
-/// The CPU runs AVX2 (asked once), for the x86-only kernels compiled with target("avx2") beside
-/// the Highway ones (SHOT matching's AVX-512 VNNI pass). False where there is no such kernel
-/// (arm64, other compilers) or portable_kernels_forced().
-inline bool cpu_has_avx2() {
-#if defined(__x86_64__) && defined(__GNUC__)
-  static const bool has = __builtin_cpu_supports("avx2") && !portable_kernels_forced();
-  return has;
-#else
-  return false;
-#endif
-}
-
-/// cpu_has_avx2() and FMA, for kernels that fuse their multiply-adds.
-inline bool cpu_has_avx2_fma() {
-#if defined(__x86_64__) && defined(__GNUC__)
-  static const bool has = cpu_has_avx2() && __builtin_cpu_supports("fma");
-  return has;
-#else
-  return false;
-#endif
-}
-
 }  // namespace rankslam::parallel
