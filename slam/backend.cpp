@@ -41,6 +41,18 @@ void Backend::add_sequential_edges(int from_node, int to_node, const Eigen::Isom
   add_wheel_edge(from_node, to_node);
 }
 
+bool Backend::refine_sequential_edge(int from_node, std::uint32_t from_generation, int to_node,
+                                     std::uint32_t to_generation, const Eigen::Isometry3d& T_from_to) {
+  if (!graph_.contains(from_node) || !graph_.contains(to_node) || graph_.generation(from_node) != from_generation ||
+      graph_.generation(to_node) != to_generation) {
+    return false;
+  }
+  const int edge = graph_.find_edge(from_node, to_node, graph::EdgeKind::kSequential);
+  if (edge < 0 || !graph_.set_measurement(edge, lie::renormalised(T_from_to))) return false;
+  pending_ = true;
+  return true;
+}
+
 void Backend::restart_wheel_motion() {
   wheel_since_keyframe_ = Eigen::Isometry3d::Identity();
   wheel_since_keyframe_covariance_.setZero();
@@ -124,7 +136,7 @@ void Backend::add_planar_edge(int from_node, int to_node, const Eigen::Isometry3
   edge.to = to_node;
   edge.T_from_to = lie::renormalised(constraint.T_from_to);
   edge.information = constraint.information;
-  edge.kind = graph::EdgeKind::kSequential;
+  edge.kind = graph::EdgeKind::kPlanar;
   (void)graph_.add_edge(edge);
 }
 

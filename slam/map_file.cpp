@@ -397,7 +397,7 @@ void read_graph(ByteReader& in, graph::PoseGraph& graph) {
     edge.from = in.i32();
     edge.to = in.i32();
     const std::uint8_t kind = in.u8();
-    if (kind > static_cast<std::uint8_t>(graph::EdgeKind::kWheels)) in.fail("pose-graph edge " + std::to_string(i) + ": unknown kind");
+    if (kind > static_cast<std::uint8_t>(graph::EdgeKind::kPlanar)) in.fail("pose-graph edge " + std::to_string(i) + ": unknown kind");
     edge.kind = static_cast<graph::EdgeKind>(kind);
     edge.T_from_to = in.pose();
     for (int r = 0; r < 6; ++r) {

@@ -34,6 +34,11 @@ class Backend {
   /// planar-base edge and the wheel edge where they apply.
   void add_sequential_edges(int from_node, int to_node, const Eigen::Isometry3d& T_from_to,
                             const Eigen::Matrix<double, 6, 6>& information);
+  /// A better estimate of the registration edge between two key-frames' nodes (local mapping):
+  /// replaces its measurement and optimises the graph at the next chance. False where the nodes
+  /// are no longer those generations or have no such edge.
+  bool refine_sequential_edge(int from_node, std::uint32_t from_generation, int to_node,
+                              std::uint32_t to_generation, const Eigen::Isometry3d& T_from_to);
   /// Starts the wheel motion since the latest key-frame afresh (at a new key-frame).
   void restart_wheel_motion();
   /// The wheels did not see the motion since the latest key-frame (a relocalisation chose another

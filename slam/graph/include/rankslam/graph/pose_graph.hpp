@@ -47,7 +47,9 @@ struct Capacity {
 
 /// What made an edge. The solver treats all kinds alike; the kind is kept for the SLAM loop and
 /// reports (and decides the kind of edges composed by remove_node()).
-enum class EdgeKind : std::uint8_t { kSequential, kLoopClosure, kWheels };
+/// kSequential: a registration chain's edge between consecutive key-frames; kPlanar: a planar
+/// base's height, roll and pitch between them.
+enum class EdgeKind : std::uint8_t { kSequential, kLoopClosure, kWheels, kPlanar };
 
 /// A relative-pose measurement between two nodes.
 struct Edge {
@@ -124,7 +126,7 @@ class PoseGraph {
   /// a 40-node circle with 16 nodes removed, the chain lands half as far from the full graph's
   /// solution as the star). Edges between id and the same neighbour are parallel and yield no
   /// composed edge. The composed edge's kind is kLoopClosure if either part was one, else
-  /// kWheels if either part was one, else kSequential. k incident edges give at most k-1
+  /// kWheels if either part was one, else kSequential (kPlanar with kPlanar stays kPlanar). k incident edges give at most k-1
   /// composed ones, so the edge store never overflows. If the node was the fixed one, the
   /// neighbour behind its most informative edge (or, without edges, the lowest remaining node)
   /// becomes fixed. False when id is not a node.
@@ -155,6 +157,12 @@ class PoseGraph {
   [[nodiscard]] int edge_count() const { return edge_count_; }
   /// Edge number index in [0, edge_count()); indices change when edges are removed.
   [[nodiscard]] const Edge& edge(int index) const;
+  /// Index of the edge from `from` to `to` of this kind (the first added where several are), or
+  /// -1 where there is none.
+  [[nodiscard]] int find_edge(int from, int to, EdgeKind kind) const;
+  /// Replaces edge index's measurement, keeping its information (a refined estimate of the same
+  /// motion). False when index is out of range or the pose is not a finite rigid transform.
+  bool set_measurement(int index, const Eigen::Isometry3d& T_from_to);
 
   /// Saving and restoring a graph (a map file): the add_node() call number of node id (0 when id
   /// is not a node) and that of the next add_node(); they order a removed node's neighbours.
