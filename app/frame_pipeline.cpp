@@ -142,4 +142,20 @@ void FramePipeline::finish() {
   }
 }
 
+void write_local_map(eval::JsonWriter& json, const slam::SlamLoop& loop) {
+  if (loop.config().local.window < 2) {
+    json.null("local_map");
+    return;
+  }
+  const slam::LocalMapCounters& local = loop.local_map();
+  json.begin_object("local_map");
+  json.integer("adjustments", local.adjustments);
+  json.integer("failed_adjustments", local.failed);
+  json.integer("refined_edges", local.refined_edges);
+  json.integer("last_landmarks", local.landmarks);
+  json.integer("last_observations", local.observations);
+  json.integer("last_inlier_observations", local.inlier_observations);
+  json.end_object();
+}
+
 }  // namespace rankslam::app

@@ -2,6 +2,7 @@
 
 #include "wheel_player.hpp"
 
+#include "rankslam/eval/json_writer.hpp"
 #include "rankslam/eval/run_report.hpp"
 #include "rankslam/eval/trajectory.hpp"
 #include "rankslam/hal/interfaces.hpp"
@@ -152,5 +153,8 @@ class FramePipeline {
   std::vector<slam::LoopClosure> wide_edges_;
   std::uint64_t wide_edges_taken_ = 0;
 };
+
+/// report.json's `local_map` object: what local mapping did (null where it is off).
+void write_local_map(eval::JsonWriter& json, const slam::SlamLoop& loop);
 
 }  // namespace rankslam::app

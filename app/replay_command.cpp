@@ -345,6 +345,7 @@ int run_replay(const ReplayArgs& args) {
   json.integer("keyframes", loop.keyframes());
   json.integer("loop_closures", loop.loop_closures());
   json.integer("loop_closures_refuted", loop.loop_closures_refuted());
+  write_local_map(json, loop);
   if (checked_closures > 0) {
     json.integer("loop_closures_checked", checked_closures);
     json.integer("false_loop_closures", false_closures);

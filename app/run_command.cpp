@@ -385,6 +385,7 @@ int run_live(const RunArgs& args) {
   json.integer("keyframes", loop.keyframes());
   json.integer("loop_closures", loop.loop_closures());
   json.integer("loop_closures_refuted", loop.loop_closures_refuted());
+  write_local_map(json, loop);
   json.number("peak_rss_mb", peak_rss_mb());
   json.string("vector_kernels", vector_kernels());
   json.string("camera", (openni2_camera != nullptr ? "openni2:" + robot.camera_location : "replay:" + recording.root.string()));

@@ -58,14 +58,7 @@ Registrar::Registrar(const SlamConfig& config, const camera::DepthCameraModel& c
 
 Eigen::Vector3f Registrar::rolling_shutter_corrected(const Eigen::Vector3f& point, double row,
                                                     const Velocity& velocity) const {
-  const double readout_s = config_.rolling_shutter_readout_ms * 1e-3;
-  if (readout_s == 0.0) return point;
-  // Rolling shutter: row y was exposed (y/h − ½)·readout after the frame's mid-exposure time.
-  // Moving its point by the camera's velocity over that time (first order) expresses it in the
-  // mid-exposure camera frame.
-  const double dt_s = (row / static_cast<double>(camera_.height()) - 0.5) * readout_s;
-  const Eigen::Vector3d p = point.cast<double>();
-  return Eigen::Vector3f((p + dt_s * (velocity.head<3>().cross(p) + velocity.tail<3>())).cast<float>());
+  return slam::rolling_shutter_corrected(point, row, camera_.height(), config_.rolling_shutter_readout_ms * 1e-3, velocity);
 }
 
 MotionEstimate Registrar::register_frames(const PhotometricFeatures& target, const Velocity& target_velocity,

@@ -8,6 +8,16 @@
 #include <limits>
 
 namespace rankslam::slam {
+
+Eigen::Vector3f rolling_shutter_corrected(const Eigen::Vector3f& point, double row, int height, double readout_s,
+                                          const Eigen::Matrix<double, 6, 1>& velocity) {
+  if (readout_s == 0.0) return point;
+  // Row y was exposed (y/h − ½)·readout after the frame's mid-exposure time. Moving its point by
+  // the camera's velocity over that time expresses it in the mid-exposure camera frame.
+  const double dt_s = (row / static_cast<double>(height) - 0.5) * readout_s;
+  const Eigen::Vector3d p = point.cast<double>();
+  return Eigen::Vector3f((p + dt_s * (velocity.head<3>().cross(p) + velocity.tail<3>())).cast<float>());
+}
 namespace {
 
 template <class Visit>

@@ -28,6 +28,7 @@ SlamLoop::SlamLoop(const SlamConfig& config, const hal::Calibration& calibration
       arbiter_(config.wheels, calibration.rgb.T_base_cam),
       keyframe_store_(make_keyframe_store(config_)),
       backend_(config_, calibration.rgb.T_base_cam, calibration.wheels.has_value()),
+      local_(config_, camera_, keyframe_layout(config_).photometric_features),
       loop_closer_(config_, keyframe_store_, registrar_, geometric_, backend_),
       relocaliser_(config_, keyframe_store_, registrar_, geometric_),
       map_digests_{calibration_digest(calibration), config_digest(config_)} {
@@ -313,6 +314,7 @@ void SlamLoop::store_keyframe(const hal::RgbdFrame& frame, bool have_depth, Fram
     }
   }
   backend_.restart_wheel_motion();
+  (void)local_.submit(keyframe_store_, backend_.graph());
   tracker_->keyframe_stored();
   keyframe.path_m = path_m_;
   if (have_depth) map_.add_keyframe(frame, images_, result.T_world_cam, &keyframe);
@@ -324,6 +326,7 @@ void SlamLoop::store_keyframe(const hal::RgbdFrame& frame, bool have_depth, Fram
 }
 
 void SlamLoop::run_backend(FrameResult& result) {
+  (void)local_.take(backend_);
   backend_.submit_pending();
   Eigen::Isometry3d correction;
   if (!backend_.take_solve(keyframe_store_, correction)) return;
@@ -344,10 +347,14 @@ void SlamLoop::finish() {
     loop_closer_.advance(0, ignored);
   }
   if (wide_) (void)wide_->finish();
+  local_.finish(keyframe_store_, backend_);
   backend_.finish(keyframe_store_, [this](const Eigen::Isometry3d& correction) { correct_tracking(correction); });
   // The live map holds the stored key-frames' points at the poses they were added at: those are
-  // the poses there are unless a closure moved them.
-  if (loop_closer_.closures() == 0 && (!wide_ || wide_->counters().edges == 0)) return;
+  // the poses there are unless a closure or local mapping moved them.
+  if (loop_closer_.closures() == 0 && local_.counters().refined_edges == 0 &&
+      (!wide_ || wide_->counters().edges == 0)) {
+    return;
+  }
   map_.rebuild(keyframe_store_);
 }
 

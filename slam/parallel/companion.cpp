@@ -60,6 +60,12 @@ void Companion::wait() {
   changed_.wait(lock, [this] { return !pending_; });
 }
 
+bool Companion::idle() {
+  if (!started()) return true;
+  const std::lock_guard<std::mutex> lock(mutex_);
+  return !pending_;
+}
+
 void Companion::companion_main() {
   for (;;) {
     Trampoline trampoline = nullptr;

@@ -50,6 +50,26 @@ TEST(Companion, RunsTheTaskBesideTheCallerAndWaitReturnsWhenItIsDone) {
   }
 }
 
+// idle() tells a task under way from a finished one without waiting, and never runs it itself.
+TEST(Companion, IdleTellsWhetherTheTaskHasFinishedWithoutWaitingForIt) {
+  Companion companion;
+  EXPECT_TRUE(companion.idle()) << "not started: tasks run inside launch()";
+  ASSERT_EQ(companion.start(), "");
+  EXPECT_TRUE(companion.idle()) << "nothing launched";
+  std::atomic<bool> release{false};
+  std::thread::id ran_on;
+  auto task = [&] {
+    ran_on = std::this_thread::get_id();
+    while (!release.load()) std::this_thread::yield();
+  };
+  companion.launch(task);
+  for (int i = 0; i < 100; ++i) EXPECT_FALSE(companion.idle());
+  release = true;
+  while (!companion.idle()) std::this_thread::yield();
+  companion.wait();
+  EXPECT_NE(ran_on, std::this_thread::get_id());
+}
+
 // A caller that waits at once takes the task over when the companion has not started it; either
 // way every task runs exactly once and wait() returns after it.
 TEST(Companion, EveryTaskRunsOnceWhoeverRunsIt) {

@@ -1,7 +1,7 @@
 // Fixed memory in the SLAM loop: SlamLoop::process() allocates nothing, frame after frame, in the
-// photometric mode and in the fused mode (ORB and geometric features, key-frame store, loop
-// closure, pose graph): not in the 2000 frames counted once the key-frame store is full,
-// key-frames are being retired and loop closures have been optimised, and not in the warm-up
+// photometric mode and in the fused mode (ORB and geometric features, key-frame store, local
+// mapping, loop closure, pose graph): not in the 2000 frames counted once the key-frame store is
+// full, key-frames are being retired and loop closures have been optimised, and not in the warm-up
 // before them either (scratch that only grows to the largest input seen so far would stop
 // growing at some frame, which may come after any warm-up).
 //
@@ -11,8 +11,9 @@
 // closing loops and the full store keeps retiring key-frames.
 //
 // What is counted: the back-end runs as in a live run (set_synchronous_backend(false)), so the
-// pose graph is optimised on the background optimiser's thread while tracking goes on, and
-// Ceres allocates there by design (bounded by the graph capacity, see rankslam/graph). The
+// pose graph is optimised on the background optimiser's thread and the local bundle adjustment
+// on the mapping thread while tracking goes on, and Ceres allocates there by design (bounded by
+// the graph's and the window's capacities, see rankslam/graph). The
 // counter sees every thread, so the steady-state tests count the calls of the tracking thread
 // alone (a thread-local count of the thread that calls process()). That the loop's work does
 // not move allocations onto some other thread is checked apart: with loop closure off no solve
@@ -269,6 +270,9 @@ void expect_steady_state_without_allocations(Mode mode, int loop_candidates_per_
   EXPECT_GT(counted.keyframes, 20);
   EXPECT_GT(counted.retired_keyframes, 0);
   EXPECT_GT(counted.loop_closures, 0);
+  // Local mapping took part: windows handed over and refined edges taken on the tracking thread.
+  EXPECT_GT(loop.local_map().adjustments, 0);
+  EXPECT_GT(loop.local_map().refined_edges, 0);
   // The map holds the stored key-frames' points and no retired one's, within its capacity.
   std::uint64_t stored_points = 0;
   for (int slot = 0; slot < loop.keyframe_store().capacity(); ++slot) {
@@ -445,12 +449,13 @@ TEST_F(SlamLoopAllocations, LoopCandidatesAreRegisteredOnePerFrameOrAllAtTheKeyf
   EXPECT_NEAR(counted[1].loop_candidates, counted[0].loop_candidates, 3);
 }
 
-// Without loop closure no graph is ever submitted, so no solve runs: then no thread at all may
-// allocate for the loop (an OpenCV worker pool, say).
+// Without loop closure and local mapping no graph is ever submitted, so no solve runs: then no
+// thread at all may allocate for the loop (an OpenCV worker pool, say).
 TEST_F(SlamLoopAllocations, FusedWithoutSolvesAllocatesNothingOnAnyThread) {
   ASSERT_TRUE(error_->empty()) << *error_;
   SlamConfig config = config_for(Mode::kFused);
   config.loop.max_candidates = 0;
+  config.local.window = 0;
   SlamLoop loop(config, recording_->calibration);
   loop.set_synchronous_backend(false);
   const CountedRun counted = run(loop, *frames_, kWarmUpFrames, kLoopFrames);

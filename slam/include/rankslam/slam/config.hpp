@@ -111,6 +111,29 @@ struct MapConfig {
   }
 };
 
+/// Local mapping (docs/methods.md §18): at each key-frame, a bundle adjustment of the newest
+/// key-frames and the ORB landmarks they share, on the mapping thread; it refines the
+/// registration edges between them. Keys `slam.local_*`.
+struct LocalMapConfig {
+  /// Key-frames adjusted together (below 2: no local mapping).
+  int window = 5;
+  int iterations = 10;
+  /// Huber threshold on an observation's error in its own standard deviations (√χ²₃ at 95 %).
+  double huber = 2.8;
+  /// Besides the two points' own noise, how far (in pixels at the point's depth) a match may lie
+  /// from where the key-frames' poses put it: the drift the window may hold.
+  double match_radius_px = 15.0;
+
+  template <typename Visitor>
+  void visit_parameters(Visitor&& visit) {
+    visit("local_window", window, 0, 16, "", "key-frames in the local bundle adjustment (below 2: off)");
+    visit("local_iterations", iterations, 1, 100, "", "Levenberg-Marquardt iterations per local bundle adjustment");
+    visit("local_huber", huber, 0.1, 100.0, "sigma", "Huber threshold of a landmark observation's error");
+    visit("local_match_radius_px", match_radius_px, 0.0, 200.0, "px",
+          "distance beyond the points' noise at which key-frame features still match as one landmark");
+  }
+};
+
 /// Loop closure (docs/methods.md §10): the candidates, the adaptive threshold and the checks
 /// against false closures. Keys `slam.loop_*`.
 struct LoopConfig {
@@ -378,6 +401,7 @@ struct SlamConfig {
   int threads = 2;
   FusedConfig fused;
   MapConfig map;
+  LocalMapConfig local;
   LoopConfig loop;
   WideConfig wide;
   RelocalisationConfig relocalisation;
@@ -474,6 +498,7 @@ struct SlamConfig {
     visit("threads", threads, 1, 8, "", "threads sharing the per-frame loops, the tracking thread included");
     fused.visit_parameters(visit);
     map.visit_parameters(visit);
+    local.visit_parameters(visit);
     loop.visit_parameters(visit);
     wide.visit_parameters(visit);
     relocalisation.visit_parameters(visit);

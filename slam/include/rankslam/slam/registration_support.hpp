@@ -20,6 +20,12 @@ namespace rankslam::slam {
 
 using lie::Matrix6d;
 
+/// `point`, seen in image row `row` of an image `height` rows tall whose rows are read out top to
+/// bottom over `readout_s`, moved to the frame's mid-exposure camera pose by the camera's
+/// `velocity` (angular, then linear; camera frame), to first order.
+[[nodiscard]] Eigen::Vector3f rolling_shutter_corrected(const Eigen::Vector3f& point, double row, int height,
+                                                        double readout_s, const Eigen::Matrix<double, 6, 1>& velocity);
+
 /// A correspondence source[i] ↔ target[i] with noise sigma_m[i] is an inlier of T_target_source
 /// when ‖T·source − target‖ ≤ kInlierSigmas·sigma_m.
 inline constexpr double kInlierSigmas = 3.0;

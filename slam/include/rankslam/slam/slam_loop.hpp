@@ -11,6 +11,7 @@
 #include "rankslam/slam/frame_images.hpp"
 #include "rankslam/slam/frame_result.hpp"
 #include "rankslam/slam/keyframe_store.hpp"
+#include "rankslam/slam/local_mapper.hpp"
 #include "rankslam/slam/loop_closer.hpp"
 #include "rankslam/slam/relocaliser.hpp"
 #include "rankslam/slam/map_builder.hpp"
@@ -66,6 +67,8 @@ class SlamLoop {
   [[nodiscard]] const PointMap& map() const { return map_.map(); }
   [[nodiscard]] int keyframes() const { return keyframes_; }
   [[nodiscard]] int loop_closures() const { return loop_closer_.closures(); }
+  /// What local mapping did (docs/methods.md §18).
+  [[nodiscard]] const LocalMapCounters& local_map() const { return local_.counters(); }
   /// Closures that passed every check but the stored key-frame's neighbours' (docs/methods.md §10).
   [[nodiscard]] int loop_closures_refuted() const { return loop_closer_.refuted(); }
   /// The index-th accepted loop closure (0: the first), or null once it has left the log (the
@@ -86,6 +89,7 @@ class SlamLoop {
   /// solve), so that results do not depend on thread timing. Live runs leave it off.
   void set_synchronous_backend(bool synchronous) {
     backend_.set_synchronous(synchronous);
+    local_.set_synchronous(synchronous);
     if (wide_) wide_->set_synchronous(synchronous);
   }
   /// End of a run: optimises the graph once more if a closure is pending (waits for it) and
@@ -159,6 +163,7 @@ class SlamLoop {
   nav::WheelArbiter arbiter_;
   KeyframeStore keyframe_store_;
   Backend backend_;
+  LocalMapper local_;
   LoopCloser loop_closer_;
   Relocaliser relocaliser_;
   std::unique_ptr<Tracker> tracker_;

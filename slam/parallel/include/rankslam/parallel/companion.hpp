@@ -39,6 +39,8 @@ class Companion {
   /// Returns once the launched task has finished (at once when none is running). A task the
   /// companion has not started yet runs on the caller, inside wait().
   void wait();
+  /// Whether the launched task has finished (true when none was launched); never waits for it.
+  [[nodiscard]] bool idle();
 
  private:
   using Trampoline = void (*)(void* context);

@@ -1,0 +1,296 @@
+#include "rankslam/slam/local_mapper.hpp"
+
+#include "rankslam/core/lie.hpp"
+#include "rankslam/slam/registration_support.hpp"
+
+#include <algorithm>
+#include <bit>
+#include <cmath>
+#include <stdexcept>
+#include <string>
+
+namespace rankslam::slam {
+namespace {
+
+// Edges a window may hold: a registration, planar and wheel edge per consecutive pair, and room
+// for edges composed through retired key-frames.
+constexpr int kEdgesPerFrame = 4;
+
+}  // namespace
+
+LocalMapper::LocalMapper(const SlamConfig& config, const camera::DepthCameraModel& camera,
+                         std::size_t features_per_keyframe)
+    : config_(config),
+      camera_(camera),
+      window_(config.local.window >= 2 && features_per_keyframe > 0 ? config.local.window : 0),
+      features_(static_cast<int>(features_per_keyframe)) {
+  if (!enabled()) return;
+  frames_.resize(static_cast<std::size_t>(window_));
+  for (WindowFrame& frame : frames_) {
+    frame.points_cam.assign(features_per_keyframe, Eigen::Vector3f::Zero());
+    frame.sigma_m.assign(features_per_keyframe, 0.0F);
+    frame.descriptors.create(features_, 32, CV_8UC1);
+  }
+  edges_.resize(static_cast<std::size_t>(kEdgesPerFrame * window_));
+  const std::size_t slots = static_cast<std::size_t>(window_) * features_per_keyframe;
+  matcher_.reserve(features_per_keyframe);
+  matches_.reserve(features_per_keyframe);
+  parent_.assign(slots, 0);
+  frames_seen_.assign(slots, 0);
+  conflicted_.assign(slots, 0);
+  landmark_of_.assign(slots, -1);
+  // A landmark is seen at least twice.
+  const std::size_t max_landmarks = slots / 2;
+  landmark_sum_.assign(max_landmarks, Eigen::Vector3d::Zero());
+  landmark_count_.assign(max_landmarks, 0);
+  inlier_frames_.assign(max_landmarks, 0);
+  observation_landmark_.assign(slots, -1);
+  observation_frame_.assign(slots, -1);
+  const std::string error = bundle_.configure({window_, static_cast<int>(max_landmarks), static_cast<int>(slots),
+                                               kEdgesPerFrame * window_});
+  if (!error.empty()) throw std::invalid_argument("slam.local_window: " + error);
+  if (const std::string started = thread_.start(); !started.empty()) {
+    throw std::invalid_argument("slam.local_window: " + started);
+  }
+}
+
+bool LocalMapper::submit(const KeyframeStore& store, const graph::PoseGraph& graph) {
+  return submit(store, graph, false);
+}
+
+void LocalMapper::finish(const KeyframeStore& store, Backend& backend) {
+  (void)take(backend, true);
+  if (submit(store, backend.graph(), true)) (void)take(backend, true);
+}
+
+bool LocalMapper::submit(const KeyframeStore& store, const graph::PoseGraph& graph, bool final_window) {
+  if (!enabled() || submitted_) return false;
+  // The newest key-frames with a node and features, oldest first.
+  std::array<int, 32> newest{};
+  int chosen = 0;
+  for (int slot = 0; slot < store.capacity(); ++slot) {
+    const StoredKeyframe& keyframe = store.slot(slot);
+    if (!keyframe.used || keyframe.node < 0 || keyframe.photometric.size() == 0) continue;
+    int at = chosen;
+    while (at > 0 && store.slot(newest[static_cast<std::size_t>(at - 1)]).sequence > keyframe.sequence) --at;
+    if (at == 0 && chosen == window_) continue;  // older than every chosen one
+    if (chosen == window_) {
+      // Drop the oldest to make room.
+      std::copy(newest.begin() + 1, newest.begin() + at, newest.begin());
+      --at;
+      --chosen;
+    }
+    std::copy_backward(newest.begin() + at, newest.begin() + chosen, newest.begin() + chosen + 1);
+    newest[static_cast<std::size_t>(at)] = slot;
+    ++chosen;
+  }
+  if (chosen < 2) return false;
+  frame_count_ = chosen;
+  for (int k = 0; k < chosen; ++k) {
+    const StoredKeyframe& keyframe = store.slot(newest[static_cast<std::size_t>(k)]);
+    WindowFrame& frame = frames_[static_cast<std::size_t>(k)];
+    frame.node = keyframe.node;
+    frame.generation = keyframe.generation;
+    frame.sequence = keyframe.sequence;
+    frame.T_world_cam = keyframe.T_world_cam;
+    frame.refined = false;
+    const PhotometricFeatures& features = keyframe.photometric;
+    frame.count = std::min(static_cast<int>(features.size()), features_);
+    for (int i = 0; i < frame.count; ++i) {
+      const auto index = static_cast<std::size_t>(i);
+      // As tracking registers them: in the frame's mid-exposure camera pose, with their noise.
+      frame.points_cam[index] =
+          rolling_shutter_corrected(features.points_cam[index], features.keypoints[index].pt.y, camera_.height(),
+                                    config_.rolling_shutter_readout_ms * 1e-3, keyframe.velocity);
+      frame.sigma_m[index] = features.sigma_m[index];
+    }
+    if (frame.count > 0) features.descriptors.rowRange(0, frame.count).copyTo(frame.descriptors.rowRange(0, frame.count));
+  }
+  // The graph's edges among them, loop closures aside: those the pose graph weighs itself.
+  edge_count_ = 0;
+  const auto index_of = [&](int node) {
+    for (int k = 0; k < frame_count_; ++k) {
+      if (frames_[static_cast<std::size_t>(k)].node == node) return k;
+    }
+    return -1;
+  };
+  for (int e = 0; e < graph.edge_count() && edge_count_ < static_cast<int>(edges_.size()); ++e) {
+    const graph::Edge& edge = graph.edge(e);
+    if (edge.kind == graph::EdgeKind::kLoopClosure) continue;
+    const int from = index_of(edge.from);
+    const int to = index_of(edge.to);
+    if (from < 0 || to < 0) continue;
+    edges_[static_cast<std::size_t>(edge_count_++)] = {from, to, edge.T_from_to, edge.information};
+  }
+  adjusted_ = false;
+  final_window_ = final_window;
+  submitted_ = true;
+  thread_.launch(job_);
+  if (synchronous_) thread_.wait();
+  return true;
+}
+
+int LocalMapper::take(Backend& backend, bool wait) {
+  if (!submitted_) return 0;
+  if (!wait && !synchronous_ && !thread_.idle()) return 0;
+  thread_.wait();
+  submitted_ = false;
+  ++counters_.adjustments;
+  counters_.landmarks = adjustment_.landmarks;
+  counters_.observations = adjustment_.observations;
+  counters_.inlier_observations = adjustment_.inlier_observations;
+  if (!adjusted_) {
+    ++counters_.failed;
+    return 0;
+  }
+  int refined = 0;
+  for (int k = 0; k + 1 < frame_count_; ++k) {
+    const WindowFrame& frame = frames_[static_cast<std::size_t>(k)];
+    const WindowFrame& next = frames_[static_cast<std::size_t>(k + 1)];
+    if (!frame.refined) continue;
+    if (backend.refine_sequential_edge(frame.node, frame.generation, next.node, next.generation, frame.T_this_next)) {
+      ++refined;
+    }
+  }
+  counters_.refined_edges += refined;
+  return refined;
+}
+
+int LocalMapper::find_root(int slot) {
+  int root = slot;
+  while (parent_[static_cast<std::size_t>(root)] != root) root = parent_[static_cast<std::size_t>(root)];
+  while (parent_[static_cast<std::size_t>(slot)] != root) {
+    const int next = parent_[static_cast<std::size_t>(slot)];
+    parent_[static_cast<std::size_t>(slot)] = root;
+    slot = next;
+  }
+  return root;
+}
+
+void LocalMapper::associate() {
+  for (int k = 0; k < frame_count_; ++k) {
+    for (int i = 0; i < frames_[static_cast<std::size_t>(k)].count; ++i) {
+      const int slot = k * features_ + i;
+      parent_[static_cast<std::size_t>(slot)] = slot;
+    }
+  }
+  const auto fx = static_cast<float>(camera_.calibration().fx);
+  const auto radius_px = static_cast<float>(config_.local.match_radius_px);
+  for (int a = 0; a < frame_count_; ++a) {
+    const WindowFrame& first = frames_[static_cast<std::size_t>(a)];
+    for (int b = a + 1; b < frame_count_; ++b) {
+      const WindowFrame& second = frames_[static_cast<std::size_t>(b)];
+      if (first.count == 0 || second.count == 0) continue;
+      matcher_.match(first.descriptors.rowRange(0, first.count), second.descriptors.rowRange(0, second.count),
+                     config_.max_hamming_distance, matches_);
+      const Eigen::Isometry3f T_first_second = (first.T_world_cam.inverse() * second.T_world_cam).cast<float>();
+      for (const FeatureMatch& match : matches_) {
+        const Eigen::Vector3f& p = first.points_cam[match.source];
+        const Eigen::Vector3f q = T_first_second * second.points_cam[match.target];
+        const float sigma_p = first.sigma_m[match.source];
+        const float sigma_q = second.sigma_m[match.target];
+        const float gate_m = static_cast<float>(kInlierSigmas) * std::sqrt(sigma_p * sigma_p + sigma_q * sigma_q) + radius_px * p.z() / fx;
+        if ((p - q).squaredNorm() > gate_m * gate_m) continue;
+        const int root_p = find_root(a * features_ + static_cast<int>(match.source));
+        const int root_q = find_root(b * features_ + static_cast<int>(match.target));
+        if (root_p == root_q) continue;
+        parent_[static_cast<std::size_t>(std::max(root_p, root_q))] = std::min(root_p, root_q);
+      }
+    }
+  }
+}
+
+void LocalMapper::adjust() {
+  associate();
+  // Tracks: the window frames each root's features come from; a track with two features of one
+  // frame joined different points (a repeated texture) and is dropped.
+  for (int k = 0; k < frame_count_; ++k) {
+    for (int i = 0; i < frames_[static_cast<std::size_t>(k)].count; ++i) {
+      const auto slot = static_cast<std::size_t>(k * features_ + i);
+      frames_seen_[slot] = 0;
+      conflicted_[slot] = 0;
+      landmark_of_[slot] = -1;
+    }
+  }
+  for (int k = 0; k < frame_count_; ++k) {
+    for (int i = 0; i < frames_[static_cast<std::size_t>(k)].count; ++i) {
+      const auto root = static_cast<std::size_t>(find_root(k * features_ + i));
+      const std::uint32_t bit = 1U << static_cast<unsigned>(k);
+      if ((frames_seen_[root] & bit) != 0) conflicted_[root] = 1;
+      frames_seen_[root] |= bit;
+    }
+  }
+  const int max_landmarks = static_cast<int>(landmark_sum_.size());
+  int landmarks = 0;
+  for (int k = 0; k < frame_count_; ++k) {
+    for (int i = 0; i < frames_[static_cast<std::size_t>(k)].count; ++i) {
+      const int slot = k * features_ + i;
+      const auto root = static_cast<std::size_t>(find_root(slot));
+      if (landmark_of_[root] < 0) {
+        if (conflicted_[root] != 0 || std::popcount(frames_seen_[root]) < 2 || landmarks == max_landmarks) continue;
+        landmark_sum_[static_cast<std::size_t>(landmarks)].setZero();
+        landmark_count_[static_cast<std::size_t>(landmarks)] = 0;
+        landmark_of_[root] = landmarks++;
+      }
+      const auto landmark = static_cast<std::size_t>(landmark_of_[root]);
+      const WindowFrame& frame = frames_[static_cast<std::size_t>(k)];
+      landmark_sum_[landmark] += frame.T_world_cam * frame.points_cam[static_cast<std::size_t>(i)].cast<double>();
+      ++landmark_count_[landmark];
+    }
+  }
+  bundle_.clear();
+  for (int k = 0; k < frame_count_; ++k) (void)bundle_.add_pose(frames_[static_cast<std::size_t>(k)].T_world_cam);
+  for (int l = 0; l < landmarks; ++l) {
+    (void)bundle_.add_landmark(landmark_sum_[static_cast<std::size_t>(l)] / landmark_count_[static_cast<std::size_t>(l)]);
+  }
+  int observations = 0;
+  for (int k = 0; k < frame_count_; ++k) {
+    const WindowFrame& frame = frames_[static_cast<std::size_t>(k)];
+    for (int i = 0; i < frame.count; ++i) {
+      const int landmark = landmark_of_[static_cast<std::size_t>(find_root(k * features_ + i))];
+      if (landmark < 0) continue;
+      const auto index = static_cast<std::size_t>(i);
+      // The noise model tracking registers with (PhotometricFeatures::sigma_m).
+      const Eigen::Matrix3d whitening = Eigen::Matrix3d::Identity() / double{frame.sigma_m[index]};
+      if (!bundle_.add_observation(k, landmark, frame.points_cam[index].cast<double>(), whitening)) continue;
+      observation_landmark_[static_cast<std::size_t>(observations)] = landmark;
+      observation_frame_[static_cast<std::size_t>(observations)] = k;
+      ++observations;
+    }
+  }
+  for (int e = 0; e < edge_count_; ++e) {
+    const WindowEdge& edge = edges_[static_cast<std::size_t>(e)];
+    (void)bundle_.add_edge(edge.from, edge.to, edge.T_from_to, edge.information);
+  }
+  const graph::LocalBundleSummary summary = bundle_.solve(config_.local.iterations, config_.local.huber);
+  adjustment_.landmarks = landmarks;
+  adjustment_.observations = observations;
+  adjustment_.inlier_observations = summary.inlier_observations;
+  if (!summary.ok) return;
+  for (int l = 0; l < landmarks; ++l) inlier_frames_[static_cast<std::size_t>(l)] = 0;
+  for (int o = 0; o < observations; ++o) {
+    if (!bundle_.inlier(o)) continue;
+    inlier_frames_[static_cast<std::size_t>(observation_landmark_[static_cast<std::size_t>(o)])] |=
+        1U << static_cast<unsigned>(observation_frame_[static_cast<std::size_t>(o)]);
+  }
+  // A registration edge takes the adjusted motion once (considered_through_: the newest key-frame
+  // whose incoming edge was considered), when it is the window's oldest in a full window (every
+  // later key-frame that sees its landmarks has joined; the next windows no longer hold it, so
+  // its landmarks are not counted twice), or at the end of a run; and only where
+  // landmarks tie its two key-frames as firmly as a registration needs.
+  const int last_pair = final_window_ ? frame_count_ - 1 : (frame_count_ == window_ ? 1 : 0);
+  for (int k = 0; k < last_pair; ++k) {
+    if (frames_[static_cast<std::size_t>(k + 1)].sequence <= considered_through_) continue;
+    considered_through_ = frames_[static_cast<std::size_t>(k + 1)].sequence;
+    const std::uint32_t both = (1U << static_cast<unsigned>(k)) | (1U << static_cast<unsigned>(k + 1));
+    int shared = 0;
+    for (int l = 0; l < landmarks; ++l) shared += (inlier_frames_[static_cast<std::size_t>(l)] & both) == both ? 1 : 0;
+    WindowFrame& frame = frames_[static_cast<std::size_t>(k)];
+    if (shared < config_.min_inliers) continue;
+    frame.refined = true;
+    frame.T_this_next = lie::renormalised(bundle_.pose(k).inverse() * bundle_.pose(k + 1));
+  }
+  adjusted_ = true;
+}
+
+}  // namespace rankslam::slam
