@@ -155,6 +155,7 @@ void write_local_map(eval::JsonWriter& json, const slam::SlamLoop& loop) {
   json.integer("last_landmarks", local.landmarks);
   json.integer("last_observations", local.observations);
   json.integer("last_inlier_observations", local.inlier_observations);
+  json.number("mean_adjust_ms", local.adjustments > 0 ? local.adjust_ms / local.adjustments : 0.0);
   json.end_object();
 }
 

@@ -1,6 +1,7 @@
 #include "rankslam/slam/local_mapper.hpp"
 
 #include "rankslam/core/lie.hpp"
+#include "rankslam/core/stopwatch.hpp"
 #include "rankslam/slam/registration_support.hpp"
 
 #include <algorithm>
@@ -139,6 +140,7 @@ int LocalMapper::take(Backend& backend, bool wait) {
   counters_.landmarks = adjustment_.landmarks;
   counters_.observations = adjustment_.observations;
   counters_.inlier_observations = adjustment_.inlier_observations;
+  counters_.adjust_ms += adjustment_.adjust_ms;
   if (!adjusted_) {
     ++counters_.failed;
     return 0;
@@ -201,6 +203,12 @@ void LocalMapper::associate() {
 }
 
 void LocalMapper::adjust() {
+  const auto start = SteadyClock::now();
+  adjust_window();
+  adjustment_.adjust_ms = elapsed_ms(start);
+}
+
+void LocalMapper::adjust_window() {
   associate();
   // Tracks: the window frames each root's features come from; a track with two features of one
   // frame joined different points (a repeated texture) and is dropped.

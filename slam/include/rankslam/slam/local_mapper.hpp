@@ -29,6 +29,8 @@ struct LocalMapCounters {
   int landmarks = 0;
   int observations = 0;
   int inlier_observations = 0;
+  /// Mapping-thread time of all adjustments (matching, landmarks, solve), ms.
+  double adjust_ms = 0.0;
 };
 
 /// Local mapping (docs/methods.md §18). At each stored key-frame the newest `local.window`
@@ -93,8 +95,10 @@ class LocalMapper {
 
   /// `final_window`: every edge of the window is refined, not only the oldest (end of a run).
   bool submit(const KeyframeStore& store, const graph::PoseGraph& graph, bool final_window);
-  /// Mapping thread: landmarks, adjustment, refined edges.
+  /// Mapping thread: adjust_window(), timed.
   void adjust();
+  /// Landmarks, adjustment, refined edges.
+  void adjust_window();
   struct Job {
     LocalMapper* mapper;
     void operator()() const { mapper->adjust(); }
@@ -121,7 +125,7 @@ class LocalMapper {
   /// The newest key-frame (by sequence) whose edge from the one before was considered for
   /// refinement; the mapping thread's, read and written only while it holds a window.
   std::int64_t considered_through_ = 0;
-  /// The window's figures (only landmarks, observations and inliers are set).
+  /// The window's figures (only landmarks, observations, inliers and time are set).
   LocalMapCounters adjustment_;
 
   // Mapping-thread scratch.
