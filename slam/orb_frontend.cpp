@@ -130,7 +130,14 @@ constexpr std::uint32_t kNone = std::numeric_limits<std::uint32_t>::max();
 // instruction, so a POPCNT clone is chosen at load time where the CPU has it. The build itself
 // never targets the build machine's CPU: the binary must run on any x86-64, and on arm64, whose
 // baseline has a popcount.
-#if defined(__x86_64__) && defined(__GNUC__)
+// ThreadSanitizer instruments the clone's load-time resolver, which then runs before its runtime
+// is set up and crashes the process: a TSan build takes the baseline loop.
+#if defined(__has_feature)
+#if __has_feature(thread_sanitizer)
+#define RANKSLAM_NO_POPCNT_CLONE
+#endif
+#endif
+#if defined(__x86_64__) && defined(__GNUC__) && !defined(__SANITIZE_THREAD__) && !defined(RANKSLAM_NO_POPCNT_CLONE)
 __attribute__((target_clones("popcnt", "default")))
 #endif
 void scan_distances(const std::uint64_t* source, int n_source, const std::uint64_t* target, int n_target,
