@@ -47,6 +47,8 @@ bool Backend::refine_sequential_edge(int from_node, std::uint32_t from_generatio
       graph_.generation(to_node) != to_generation) {
     return false;
   }
+  // A loaded map's key-frames are held where it put them: its edges stay as saved.
+  if (graph_.held(from_node) && graph_.held(to_node)) return false;
   const int edge = graph_.find_edge(from_node, to_node, graph::EdgeKind::kSequential);
   if (edge < 0 || !graph_.set_measurement(edge, lie::renormalised(T_from_to))) return false;
   pending_ = true;

@@ -110,5 +110,29 @@ TEST_F(BackendTest, AGraphWhoseEdgesAgreeStaysWhereItIs) {
   EXPECT_LT((correction.matrix() - Eigen::Matrix4d::Identity()).cwiseAbs().maxCoeff(), 1e-6);
 }
 
+// Local mapping's refinement replaces a registration edge's measurement and queues a solve, but
+// not for nodes that left the graph since, nor between two held (loaded-map) key-frames.
+TEST_F(BackendTest, ARefinedRegistrationEdgeMovesTheChainUnlessItsNodesChangedOrAreHeld) {
+  const int a = add_keyframe(along_x(0.0));
+  const int b = add_keyframe(along_x(1.1));
+  const StoredKeyframe& first = store_.slot(a);
+  const StoredKeyframe& second = store_.slot(b);
+  backend_.add_sequential_edges(first.node, second.node, along_x(1.1), backend_.registration_information(20, 1.0));
+  EXPECT_FALSE(backend_.refine_sequential_edge(first.node, first.generation + 1, second.node, second.generation,
+                                               along_x(1.0)));
+  ASSERT_TRUE(backend_.refine_sequential_edge(first.node, first.generation, second.node, second.generation,
+                                              along_x(1.0)));
+  backend_.submit_pending();
+  Eigen::Isometry3d correction;
+  ASSERT_TRUE(backend_.take_solve(store_, correction));
+  EXPECT_NEAR(store_.slot(b).T_world_cam.translation().x(), 1.0, 1e-6);
+  EXPECT_NEAR(correction.translation().x(), -0.1, 1e-6);
+
+  (void)backend_.graph_to_restore().hold(first.node);
+  (void)backend_.graph_to_restore().hold(second.node);
+  EXPECT_FALSE(backend_.refine_sequential_edge(first.node, first.generation, second.node, second.generation,
+                                               along_x(0.5)));
+}
+
 }  // namespace
 }  // namespace rankslam::slam

@@ -36,7 +36,7 @@ class Backend {
                             const Eigen::Matrix<double, 6, 6>& information);
   /// A better estimate of the registration edge between two key-frames' nodes (local mapping):
   /// replaces its measurement and optimises the graph at the next chance. False where the nodes
-  /// are no longer those generations or have no such edge.
+  /// are no longer those generations, have no such edge or are both held (a loaded map's).
   bool refine_sequential_edge(int from_node, std::uint32_t from_generation, int to_node,
                               std::uint32_t to_generation, const Eigen::Isometry3d& T_from_to);
   /// Starts the wheel motion since the latest key-frame afresh (at a new key-frame).
