@@ -40,9 +40,9 @@ struct LocalMapCounters {
 /// them, within the points' noise and `local.match_radius_px`; a landmark seen twice in one
 /// key-frame is dropped) and adjusts poses and landmarks together, the graph's registration,
 /// planar and wheel edges between those key-frames joining as priors (graph::LocalBundle). Each
-/// registration edge takes the adjusted motion once: when it is the oldest of a full window, and
-/// only where its two key-frames share at least `min_inliers` landmarks within the Huber
-/// threshold. The pose graph spreads it.
+/// registration edge takes the adjusted motion once: when it is the oldest of a full window (the
+/// newest window's others at finish()), and only where its two key-frames share at least
+/// `min_inliers` landmarks within the Huber threshold. The pose graph spreads it.
 ///
 /// Every buffer is sized at construction; handing a window over and taking the result allocate
 /// nothing; the adjustment's Ceres solve allocates on the mapping thread.
