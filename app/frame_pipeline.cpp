@@ -143,11 +143,11 @@ void FramePipeline::finish() {
 }
 
 void write_local_map(eval::JsonWriter& json, const slam::SlamLoop& loop) {
-  if (loop.config().local.window < 2) {
+  if (loop.local_map() == nullptr) {
     json.null("local_map");
     return;
   }
-  const slam::LocalMapCounters& local = loop.local_map();
+  const slam::LocalMapCounters& local = *loop.local_map();
   json.begin_object("local_map");
   json.integer("adjustments", local.adjustments);
   json.integer("failed_adjustments", local.failed);

@@ -7,6 +7,7 @@
 #include <algorithm>
 #include <bit>
 #include <cmath>
+#include <cstdint>
 #include <stdexcept>
 #include <string>
 
@@ -16,6 +17,8 @@ namespace {
 // Edges a window may hold: a registration, planar and wheel edge per consecutive pair, and room
 // for edges composed through retired key-frames.
 constexpr int kEdgesPerFrame = 4;
+// The configuration's largest window (slam.local_window); a frame is a bit of a 32-bit mask.
+constexpr int kMaxWindow = 16;
 
 }  // namespace
 
@@ -45,8 +48,6 @@ LocalMapper::LocalMapper(const SlamConfig& config, const camera::DepthCameraMode
   landmark_sum_.assign(max_landmarks, Eigen::Vector3d::Zero());
   landmark_count_.assign(max_landmarks, 0);
   inlier_frames_.assign(max_landmarks, 0);
-  observation_landmark_.assign(slots, -1);
-  observation_frame_.assign(slots, -1);
   const std::string error = bundle_.configure({window_, static_cast<int>(max_landmarks), static_cast<int>(slots),
                                                kEdgesPerFrame * window_});
   if (!error.empty()) throw std::invalid_argument("slam.local_window: " + error);
@@ -66,25 +67,22 @@ void LocalMapper::finish(const KeyframeStore& store, Backend& backend) {
 
 bool LocalMapper::submit(const KeyframeStore& store, const graph::PoseGraph& graph, bool final_window) {
   if (!enabled() || submitted_) return false;
-  // The newest key-frames with a node and features, oldest first.
-  std::array<int, 32> newest{};
+  // The newest key-frames with a node and features: each the newest older than the last taken.
+  std::array<int, kMaxWindow> newest{};
   int chosen = 0;
-  for (int slot = 0; slot < store.capacity(); ++slot) {
-    const StoredKeyframe& keyframe = store.slot(slot);
-    if (!keyframe.used || keyframe.node < 0 || keyframe.photometric.size() == 0) continue;
-    int at = chosen;
-    while (at > 0 && store.slot(newest[static_cast<std::size_t>(at - 1)]).sequence > keyframe.sequence) --at;
-    if (at == 0 && chosen == window_) continue;  // older than every chosen one
-    if (chosen == window_) {
-      // Drop the oldest to make room.
-      std::copy(newest.begin() + 1, newest.begin() + at, newest.begin());
-      --at;
-      --chosen;
+  for (std::int64_t below = INT64_MAX; chosen < window_; ++chosen) {
+    int found = -1;
+    for (int slot = 0; slot < store.capacity(); ++slot) {
+      const StoredKeyframe& keyframe = store.slot(slot);
+      const bool eligible = keyframe.used && keyframe.node >= 0 && keyframe.photometric.size() > 0;
+      if (!eligible || keyframe.sequence >= below) continue;
+      if (found < 0 || keyframe.sequence > store.slot(found).sequence) found = slot;
     }
-    std::copy_backward(newest.begin() + at, newest.begin() + chosen, newest.begin() + chosen + 1);
-    newest[static_cast<std::size_t>(at)] = slot;
-    ++chosen;
+    if (found < 0) break;
+    newest[static_cast<std::size_t>(chosen)] = found;
+    below = store.slot(found).sequence;
   }
+  std::reverse(newest.begin(), newest.begin() + chosen);  // oldest first
   if (chosen < 2) return false;
   frame_count_ = chosen;
   for (int k = 0; k < chosen; ++k) {
@@ -191,7 +189,8 @@ void LocalMapper::associate() {
         const Eigen::Vector3f q = T_first_second * second.points_cam[match.target];
         const float sigma_p = first.sigma_m[match.source];
         const float sigma_q = second.sigma_m[match.target];
-        const float gate_m = static_cast<float>(kInlierSigmas) * std::sqrt(sigma_p * sigma_p + sigma_q * sigma_q) + radius_px * p.z() / fx;
+        const float gate_m =
+            static_cast<float>(kInlierSigmas) * std::sqrt(sigma_p * sigma_p + sigma_q * sigma_q) + radius_px * p.z() / fx;
         if ((p - q).squaredNorm() > gate_m * gate_m) continue;
         const int root_p = find_root(a * features_ + static_cast<int>(match.source));
         const int root_q = find_root(b * features_ + static_cast<int>(match.target));
@@ -251,7 +250,6 @@ void LocalMapper::adjust_window() {
   for (int l = 0; l < landmarks; ++l) {
     (void)bundle_.add_landmark(landmark_sum_[static_cast<std::size_t>(l)] / landmark_count_[static_cast<std::size_t>(l)]);
   }
-  int observations = 0;
   for (int k = 0; k < frame_count_; ++k) {
     const WindowFrame& frame = frames_[static_cast<std::size_t>(k)];
     for (int i = 0; i < frame.count; ++i) {
@@ -260,12 +258,10 @@ void LocalMapper::adjust_window() {
       const auto index = static_cast<std::size_t>(i);
       // The noise model tracking registers with (PhotometricFeatures::sigma_m).
       const Eigen::Matrix3d whitening = Eigen::Matrix3d::Identity() / double{frame.sigma_m[index]};
-      if (!bundle_.add_observation(k, landmark, frame.points_cam[index].cast<double>(), whitening)) continue;
-      observation_landmark_[static_cast<std::size_t>(observations)] = landmark;
-      observation_frame_[static_cast<std::size_t>(observations)] = k;
-      ++observations;
+      (void)bundle_.add_observation(k, landmark, frame.points_cam[index].cast<double>(), whitening);
     }
   }
+  const int observations = bundle_.observations();
   for (int e = 0; e < edge_count_; ++e) {
     const WindowEdge& edge = edges_[static_cast<std::size_t>(e)];
     (void)bundle_.add_edge(edge.from, edge.to, edge.T_from_to, edge.information);
@@ -278,8 +274,8 @@ void LocalMapper::adjust_window() {
   for (int l = 0; l < landmarks; ++l) inlier_frames_[static_cast<std::size_t>(l)] = 0;
   for (int o = 0; o < observations; ++o) {
     if (!bundle_.inlier(o)) continue;
-    inlier_frames_[static_cast<std::size_t>(observation_landmark_[static_cast<std::size_t>(o)])] |=
-        1U << static_cast<unsigned>(observation_frame_[static_cast<std::size_t>(o)]);
+    inlier_frames_[static_cast<std::size_t>(bundle_.observation_landmark(o))] |=
+        1U << static_cast<unsigned>(bundle_.observation_pose(o));
   }
   // A registration edge takes the adjusted motion once (considered_through_: the newest key-frame
   // whose incoming edge was considered), when it is the window's oldest in a full window (every

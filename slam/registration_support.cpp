@@ -18,6 +18,7 @@ Eigen::Vector3f rolling_shutter_corrected(const Eigen::Vector3f& point, double r
   const Eigen::Vector3d p = point.cast<double>();
   return Eigen::Vector3f((p + dt_s * (velocity.head<3>().cross(p) + velocity.tail<3>())).cast<float>());
 }
+
 namespace {
 
 template <class Visit>

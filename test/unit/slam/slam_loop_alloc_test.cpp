@@ -271,8 +271,9 @@ void expect_steady_state_without_allocations(Mode mode, int loop_candidates_per_
   EXPECT_GT(counted.retired_keyframes, 0);
   EXPECT_GT(counted.loop_closures, 0);
   // Local mapping took part: windows handed over and refined edges taken on the tracking thread.
-  EXPECT_GT(loop.local_map().adjustments, 0);
-  EXPECT_GT(loop.local_map().refined_edges, 0);
+  ASSERT_NE(loop.local_map(), nullptr);
+  EXPECT_GT(loop.local_map()->adjustments, 0);
+  EXPECT_GT(loop.local_map()->refined_edges, 0);
   // The map holds the stored key-frames' points and no retired one's, within its capacity.
   std::uint64_t stored_points = 0;
   for (int slot = 0; slot < loop.keyframe_store().capacity(); ++slot) {

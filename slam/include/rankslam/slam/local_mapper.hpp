@@ -139,8 +139,6 @@ class LocalMapper {
   std::vector<int> landmark_count_;
   std::vector<std::uint32_t> inlier_frames_;  ///< per landmark: a bit per frame seeing it as an inlier
   graph::LocalBundle bundle_;
-  std::vector<int> observation_landmark_;
-  std::vector<int> observation_frame_;
 
   LocalMapCounters counters_;
   // Last, so that it stops (finishing a window under way) before what the window uses goes.

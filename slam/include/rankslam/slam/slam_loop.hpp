@@ -67,8 +67,10 @@ class SlamLoop {
   [[nodiscard]] const PointMap& map() const { return map_.map(); }
   [[nodiscard]] int keyframes() const { return keyframes_; }
   [[nodiscard]] int loop_closures() const { return loop_closer_.closures(); }
-  /// What local mapping did (docs/methods.md §18).
-  [[nodiscard]] const LocalMapCounters& local_map() const { return local_.counters(); }
+  /// What local mapping did (docs/methods.md §18); null where it is off.
+  [[nodiscard]] const LocalMapCounters* local_map() const {
+    return local_.enabled() ? &local_.counters() : nullptr;
+  }
   /// Closures that passed every check but the stored key-frame's neighbours' (docs/methods.md §10).
   [[nodiscard]] int loop_closures_refuted() const { return loop_closer_.refuted(); }
   /// The index-th accepted loop closure (0: the first), or null once it has left the log (the

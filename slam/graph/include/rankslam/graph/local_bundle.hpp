@@ -71,6 +71,11 @@ class LocalBundle {
   [[nodiscard]] Eigen::Vector3d landmark(int index) const;
   /// Whether observation index's whitened error is within the Huber threshold of the last solve.
   [[nodiscard]] bool inlier(int index) const { return inlier_[static_cast<std::size_t>(index)] != 0; }
+  /// The pose and the landmark of observation index.
+  [[nodiscard]] int observation_pose(int index) const { return observations_[static_cast<std::size_t>(index)].pose; }
+  [[nodiscard]] int observation_landmark(int index) const {
+    return observations_[static_cast<std::size_t>(index)].landmark;
+  }
   [[nodiscard]] Eigen::Vector3d residual(int index) const { return whitened_error(observations_[static_cast<std::size_t>(index)]); }
 
  private:
