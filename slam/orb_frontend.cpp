@@ -121,64 +121,8 @@ void OrbFrontend::extract(const cv::Mat& gray, const cv::Mat& depth, Photometric
   features.descriptors = features.descriptor_storage.rowRange(0, kept);
 }
 
-namespace {
-
-constexpr std::uint32_t kNone = std::numeric_limits<std::uint32_t>::max();
-
-// The whole source × target distance matrix in one pass: row minima give source→target, the
-// column minima kept on the way give target→source. x86-64's baseline has no POPCNT
-// instruction, so a POPCNT clone is chosen at load time where the CPU has it. The build itself
-// never targets the build machine's CPU: the binary must run on any x86-64, and on arm64, whose
-// baseline has a popcount.
-// ThreadSanitizer instruments the clone's load-time resolver, which then runs before its runtime
-// is set up and crashes the process: a TSan build takes the baseline loop.
-#if defined(__has_feature)
-#if __has_feature(thread_sanitizer)
-#define RANKSLAM_NO_POPCNT_CLONE
-#endif
-#endif
-#if defined(__x86_64__) && defined(__GNUC__) && !defined(__SANITIZE_THREAD__) && !defined(RANKSLAM_NO_POPCNT_CLONE)
-__attribute__((target_clones("popcnt", "default")))
-#endif
-void scan_distances(const std::uint64_t* source, int n_source, const std::uint64_t* target, int n_target,
-                    std::uint32_t* best_target_for_source, std::uint32_t* best_source_for_target,
-                    std::uint32_t* best_distance_for_target) {
-  for (int i = 0; i < n_source; ++i) {
-    const std::uint64_t* a = source + 4 * i;
-    std::uint32_t best = kNone;
-    std::uint32_t best_j = kNone;
-    for (int j = 0; j < n_target; ++j) {
-      const std::uint64_t* b = target + 4 * j;
-      const auto distance = static_cast<std::uint32_t>(__builtin_popcountll(a[0] ^ b[0]) + __builtin_popcountll(a[1] ^ b[1]) +
-                                                       __builtin_popcountll(a[2] ^ b[2]) + __builtin_popcountll(a[3] ^ b[3]));
-      if (distance < best) {
-        best = distance;
-        best_j = static_cast<std::uint32_t>(j);
-      }
-      if (distance < best_distance_for_target[j]) {
-        best_distance_for_target[j] = distance;
-        best_source_for_target[j] = static_cast<std::uint32_t>(i);
-      }
-    }
-    best_target_for_source[i] = best_j;
-  }
-}
-
-// Copies 32-byte descriptor rows into 64-bit words so the scan reads them without alignment
-// concerns.
-void pack_descriptors(const cv::Mat& descriptors, std::vector<std::uint64_t>& words) {
-  words.resize(static_cast<std::size_t>(descriptors.rows) * 4);
-  for (int r = 0; r < descriptors.rows; ++r) std::memcpy(&words[static_cast<std::size_t>(r) * 4], descriptors.ptr(r), 32);
-}
-
-}  // namespace
-
-void MutualHammingMatcher::reserve(std::size_t max_descriptors) {
-  best_source_for_target_.reserve(max_descriptors);
-  best_distance_for_target_.reserve(max_descriptors);
-  scratch_best_target_.reserve(max_descriptors);
-  source_words_.reserve(max_descriptors * 4);
-  target_words_.reserve(max_descriptors * 4);
+void MutualHammingMatcher::reserve(std::size_t max_descriptors, bool vector) {
+  nearest_.reserve(max_descriptors, vector);
 }
 
 void MutualHammingMatcher::match(const cv::Mat& source, const cv::Mat& target, int max_distance,
@@ -187,18 +131,14 @@ void MutualHammingMatcher::match(const cv::Mat& source, const cv::Mat& target, i
   const int n_source = source.rows;
   const int n_target = target.rows;
   if (n_source == 0 || n_target == 0) return;
-  best_source_for_target_.assign(static_cast<std::size_t>(n_target), kNone);
-  best_distance_for_target_.assign(static_cast<std::size_t>(n_target), kNone);
-  scratch_best_target_.assign(static_cast<std::size_t>(n_source), kNone);
-  pack_descriptors(source, source_words_);
-  pack_descriptors(target, target_words_);
-  scan_distances(source_words_.data(), n_source, target_words_.data(), n_target, scratch_best_target_.data(),
-                 best_source_for_target_.data(), best_distance_for_target_.data());
+  nearest_.scan(source, target);
   for (int i = 0; i < n_source; ++i) {
-    const std::uint32_t j = scratch_best_target_[static_cast<std::size_t>(i)];
-    if (j == kNone || best_source_for_target_[j] != static_cast<std::uint32_t>(i)) continue;
-    if (best_distance_for_target_[j] > static_cast<std::uint32_t>(max_distance)) continue;
-    matches.push_back({static_cast<std::uint32_t>(i), j, best_distance_for_target_[j]});
+    const std::uint32_t j = nearest_.nearest_target(i);
+    if (j == geometry::HammingNearest::kNone) continue;
+    const int jj = static_cast<int>(j);
+    if (nearest_.nearest_source(jj) != static_cast<std::uint32_t>(i)) continue;
+    if (nearest_.source_distance(jj) > static_cast<std::uint32_t>(max_distance)) continue;
+    matches.push_back({static_cast<std::uint32_t>(i), j, nearest_.source_distance(jj)});
   }
 }
 

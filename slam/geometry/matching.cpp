@@ -6,6 +6,7 @@
 #include <algorithm>
 #include <cstdint>
 #include <cmath>
+#include <cstring>
 #include <limits>
 
 #include <Eigen/Core>
@@ -531,6 +532,85 @@ bool DescriptorMatcher::match_8bit(const float* a, int count_a, const float* b, 
   (void)count_b;
   return false;
 #endif
+}
+
+namespace {
+
+// The portable loop over targets [begin, end) of the planes, continuing the rows' and columns'
+// nearest so far. x86-64's baseline has no POPCNT instruction, so a POPCNT clone is chosen at
+// load time where the CPU has it. The build itself never targets the build machine's CPU: the
+// binary must run on any x86-64, and on arm64, whose baseline has a popcount.
+// ThreadSanitizer instruments the clone's load-time resolver, which then runs before its runtime
+// is set up and crashes the process: a TSan build takes the baseline loop.
+#if defined(__has_feature)
+#if __has_feature(thread_sanitizer)
+#define RANKSLAM_NO_POPCNT_CLONE
+#endif
+#endif
+#if defined(__x86_64__) && defined(__GNUC__) && !defined(__SANITIZE_THREAD__) && !defined(RANKSLAM_NO_POPCNT_CLONE)
+__attribute__((target_clones("popcnt", "default")))
+#endif
+void hamming_portable(const std::uint64_t* source, int n_source, const std::uint64_t* planes, std::ptrdiff_t stride,
+                      int begin, int end, std::int64_t* row_best, std::int64_t* row_arg, std::int64_t* col_best,
+                      std::int64_t* col_arg) {
+  for (int i = 0; i < n_source; ++i) {
+    const std::uint64_t* a = source + 4 * static_cast<std::ptrdiff_t>(i);
+    std::int64_t best = row_best[i];
+    std::int64_t best_j = row_arg[i];
+    for (int j = begin; j < end; ++j) {
+      const std::uint64_t* b = planes + j;
+      const std::int64_t distance = __builtin_popcountll(a[0] ^ b[0]) + __builtin_popcountll(a[1] ^ b[stride]) +
+                                    __builtin_popcountll(a[2] ^ b[2 * stride]) +
+                                    __builtin_popcountll(a[3] ^ b[3 * stride]);
+      if (distance < best) {
+        best = distance;
+        best_j = j;
+      }
+      if (distance < col_best[j]) {
+        col_best[j] = distance;
+        col_arg[j] = i;
+      }
+    }
+    row_best[i] = best;
+    row_arg[i] = best_j;
+  }
+}
+
+}  // namespace
+
+void HammingNearest::reserve(std::size_t max_descriptors, bool vector) {
+  use_vector_ = vector && parallel::vector_kernels_enabled();
+  const std::size_t padded = (max_descriptors + 7) / 8 * 8;
+  source_words_.reserve(max_descriptors * 4);
+  target_planes_.reserve(padded * 4);
+  for (std::vector<std::int64_t>* v : {&row_best_, &row_arg_}) v->reserve(max_descriptors);
+  for (std::vector<std::int64_t>* v : {&col_best_, &col_arg_}) v->reserve(padded);
+}
+
+void HammingNearest::scan(const cv::Mat& source, const cv::Mat& target) {
+  constexpr std::int64_t kFar = std::numeric_limits<std::int64_t>::max();
+  const int n_source = source.rows;
+  const int n_target = target.rows;
+  const int stride = (n_target + 7) / 8 * 8;
+  source_words_.resize(static_cast<std::size_t>(n_source) * 4);
+  for (int r = 0; r < n_source; ++r) std::memcpy(&source_words_[static_cast<std::size_t>(r) * 4], source.ptr(r), 32);
+  target_planes_.resize(static_cast<std::size_t>(stride) * 4);
+  for (int r = 0; r < n_target; ++r) {
+    std::uint64_t words[4];
+    std::memcpy(words, target.ptr(r), 32);
+    for (int k = 0; k < 4; ++k) target_planes_[static_cast<std::size_t>(k * stride + r)] = words[k];
+  }
+  row_best_.assign(static_cast<std::size_t>(n_source), kFar);
+  row_arg_.assign(static_cast<std::size_t>(n_source), static_cast<std::int64_t>(kNone));
+  col_best_.assign(static_cast<std::size_t>(stride), kFar);
+  col_arg_.assign(static_cast<std::size_t>(stride), static_cast<std::int64_t>(kNone));
+  int done = 0;
+  if (use_vector_ && n_source > 0) {
+    done = vector::hamming_scan(source_words_.data(), n_source, target_planes_.data(), stride, n_target,
+                                row_best_.data(), row_arg_.data(), col_best_.data(), col_arg_.data());
+  }
+  hamming_portable(source_words_.data(), n_source, target_planes_.data(), stride, done, n_target, row_best_.data(),
+                   row_arg_.data(), col_best_.data(), col_arg_.data());
 }
 
 }  // namespace rankslam::geometry

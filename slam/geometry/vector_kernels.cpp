@@ -8,7 +8,8 @@
 #include <array>
 #include <cmath>
 #include <cstddef>
-
+#include <cstdint>
+#include <limits>
 
 #undef HWY_TARGET_INCLUDE
 #define HWY_TARGET_INCLUDE "vector_kernels.cpp"
@@ -481,6 +482,70 @@ void GatherRun(const float* xs, const float* ys, const float* zs, const int* ind
   }
 }
 
+// --- Binary descriptors ----------------------------------------------------------------------
+
+int HammingScan(const std::uint64_t* source, int n_source, const std::uint64_t* planes, int stride, int end,
+                std::int64_t* row_best, std::int64_t* row_arg, std::int64_t* col_best, std::int64_t* col_arg) {
+#if HWY_TARGET == HWY_SCALAR
+  (void)source, (void)n_source, (void)planes, (void)stride, (void)end;
+  (void)row_best, (void)row_arg, (void)col_best, (void)col_arg;
+  return 0;  // one lane: the portable loop does it all
+#else
+  // One source against a vector of targets: each lane a target's distance, the bytes' counts of
+  // the four words added (at most 32 per byte) before one sum per lane.
+  const hn::CappedTag<std::int64_t, 8> d;
+  const hn::RebindToUnsigned<decltype(d)> du;
+  const hn::Repartition<std::uint8_t, decltype(d)> d8;
+  using VI = hn::Vec<decltype(d)>;
+  const int lanes = static_cast<int>(hn::Lanes(d));
+  const int done = end - end % lanes;
+  if (done == 0) return 0;
+  HWY_ALIGN std::int64_t lane_best[8];
+  HWY_ALIGN std::int64_t lane_arg[8];
+  const std::ptrdiff_t plane = stride;
+  for (int i = 0; i < n_source; ++i) {
+    const std::uint64_t* a = source + 4 * static_cast<std::ptrdiff_t>(i);
+    const auto a0 = hn::Set(du, a[0]);
+    const auto a1 = hn::Set(du, a[1]);
+    const auto a2 = hn::Set(du, a[2]);
+    const auto a3 = hn::Set(du, a[3]);
+    const VI row = hn::Set(d, static_cast<std::int64_t>(i));
+    VI best = hn::Set(d, std::numeric_limits<std::int64_t>::max());
+    VI arg = hn::Zero(d);
+    for (int j = 0; j < done; j += lanes) {
+      const std::uint64_t* b = planes + j;
+      auto count = hn::PopulationCount(hn::BitCast(d8, hn::Xor(a0, hn::LoadU(du, b))));
+      count = hn::Add(count, hn::PopulationCount(hn::BitCast(d8, hn::Xor(a1, hn::LoadU(du, b + plane)))));
+      count = hn::Add(count, hn::PopulationCount(hn::BitCast(d8, hn::Xor(a2, hn::LoadU(du, b + 2 * plane)))));
+      count = hn::Add(count, hn::PopulationCount(hn::BitCast(d8, hn::Xor(a3, hn::LoadU(du, b + 3 * plane)))));
+      const VI distance = hn::BitCast(d, hn::SumsOf8(count));
+      const auto nearer = hn::Lt(distance, best);
+      best = hn::IfThenElse(nearer, distance, best);
+      arg = hn::IfThenElse(nearer, hn::Iota(d, static_cast<std::int64_t>(j)), arg);
+      const VI column = hn::LoadU(d, col_best + j);
+      const auto nearer_column = hn::Lt(distance, column);
+      hn::StoreU(hn::IfThenElse(nearer_column, distance, column), d, col_best + j);
+      hn::StoreU(hn::IfThenElse(nearer_column, row, hn::LoadU(d, col_arg + j)), d, col_arg + j);
+    }
+    // Each lane holds its targets' nearest, the lowest index on ties: the lanes' nearest, ties
+    // to the lowest index, is the row's.
+    hn::Store(best, d, lane_best);
+    hn::Store(arg, d, lane_arg);
+    std::int64_t nearest = lane_best[0];
+    std::int64_t nearest_arg = lane_arg[0];
+    for (int lane = 1; lane < lanes; ++lane) {
+      if (lane_best[lane] < nearest || (lane_best[lane] == nearest && lane_arg[lane] < nearest_arg)) {
+        nearest = lane_best[lane];
+        nearest_arg = lane_arg[lane];
+      }
+    }
+    row_best[i] = nearest;
+    row_arg[i] = nearest_arg;
+  }
+  return done;
+#endif
+}
+
 }  // namespace rankslam::geometry::vector::HWY_NAMESPACE
 HWY_AFTER_NAMESPACE();
 
@@ -495,6 +560,7 @@ HWY_EXPORT(PrepareRow);
 HWY_EXPORT(AddBlockRows);
 HWY_EXPORT(WithinRadius);
 HWY_EXPORT(GatherRun);
+HWY_EXPORT(HammingScan);
 
 void window_moments(const BlockImage& blocks, const Eigen::Vector3f& center, int bu, int bv, int steps,
                     float half_blocks, float r2, float (&sums)[10]) {
@@ -533,6 +599,11 @@ void gather_run(const float* xs, const float* ys, const float* zs, const int* in
   HWY_DYNAMIC_DISPATCH(GatherRun)(xs, ys, zs, indices, q, r2, count, out, written, support);
 }
 
+int hamming_scan(const std::uint64_t* source, int n_source, const std::uint64_t* planes, int stride, int end,
+                 std::int64_t* row_best, std::int64_t* row_arg, std::int64_t* col_best, std::int64_t* col_arg) {
+  return HWY_DYNAMIC_DISPATCH(HammingScan)(source, n_source, planes, stride, end, row_best, row_arg, col_best,
+                                           col_arg);
+}
 
 }  // namespace rankslam::geometry::vector
 #endif

@@ -130,6 +130,18 @@ inline float dot_in_sequence(const float* x, const float* y, int dim, int from =
   return s;
 }
 
+// --- Binary descriptors ----------------------------------------------------------------------
+
+/// Hamming distances of `n_source` 256-bit descriptors (4 words each, row after row) to the
+/// targets [0, end), whose words are four planes of `stride` (plane k holds word k of every
+/// target). Per source i: row_best[i] / row_arg[i] its nearest target over the targets covered,
+/// the lowest index on ties. Per target j: col_best[j] / col_arg[j] replaced where a source is
+/// strictly nearer (sources ascending: the lowest index on ties). Integer distances, so the
+/// portable loop's values; returns the targets covered (whole vectors from 0, none on a target
+/// without vectors).
+int hamming_scan(const std::uint64_t* source, int n_source, const std::uint64_t* planes, int stride, int end,
+                 std::int64_t* row_best, std::int64_t* row_arg, std::int64_t* col_best, std::int64_t* col_arg);
+
 // --- Cloud pre-processing -------------------------------------------------------------------
 
 /// One image row of the voxel grid's pass: every pixel's camera-frame point and voxel

@@ -22,9 +22,12 @@
 #include <vector>
 
 #include <nanoflann.hpp>
+#include <opencv2/core.hpp>
+#include <opencv2/features2d.hpp>
 
 #include "geometry_bench_support.hpp"
 #include "rankslam/geometry/frontend.hpp"
+#include "rankslam/geometry/matching.hpp"
 #include "rankslam/camera/depth_camera.hpp"
 
 namespace {
@@ -219,6 +222,49 @@ void BM_MatchExhaustive(benchmark::State& state) {
 }
 // kernel 0: the best (8-bit pass where the CPU has AVX-512 VNNI), 1: portable, 2: float only.
 BENCHMARK(BM_MatchExhaustive)->Arg(0)->Arg(1)->Arg(2)->ArgName("kernel")->Unit(benchmark::kMicrosecond);
+
+// ORB-sized binary descriptors (1000 × 1000 of 32 bytes): rankslam's two-way nearest scan with
+// its vector kernel and with its portable loop, against OpenCV's brute-force Hamming matcher
+// with cross-check (the same mutual matches) in the same run.
+struct BinaryPair {
+  cv::Mat a, b;
+};
+
+const BinaryPair& binary_pair() {
+  static const BinaryPair pair = [] {
+    BinaryPair p{cv::Mat(1000, 32, CV_8UC1), cv::Mat(1000, 32, CV_8UC1)};
+    cv::RNG rng(42);
+    rng.fill(p.a, cv::RNG::UNIFORM, 0, 256);
+    rng.fill(p.b, cv::RNG::UNIFORM, 0, 256);
+    return p;
+  }();
+  return pair;
+}
+
+void BM_HammingNearest(benchmark::State& state) {
+  const BinaryPair& d = binary_pair();
+  HammingNearest nearest;
+  nearest.reserve(1000, state.range(0) == 0);
+  for (auto _ : state) {
+    nearest.scan(d.a, d.b);
+    benchmark::DoNotOptimize(nearest.nearest_target(0));
+  }
+  state.counters["vector"] = nearest.uses_vector_kernel() ? 1 : 0;
+}
+// kernel 0: the vector kernel where the CPU has one, 1: portable.
+BENCHMARK(BM_HammingNearest)->Arg(0)->Arg(1)->ArgName("kernel")->Unit(benchmark::kMicrosecond);
+
+void BM_HammingOpenCvCrossCheck(benchmark::State& state) {
+  const BinaryPair& d = binary_pair();
+  cv::BFMatcher matcher(cv::NORM_HAMMING, true);
+  std::vector<cv::DMatch> matches;
+  for (auto _ : state) {
+    matcher.match(d.a, d.b, matches);
+    benchmark::DoNotOptimize(matches.data());
+  }
+  state.counters["matches"] = static_cast<double>(matches.size());
+}
+BENCHMARK(BM_HammingOpenCvCrossCheck)->Unit(benchmark::kMicrosecond);
 
 struct DescriptorSet {
   const float* data = nullptr;

@@ -1,12 +1,16 @@
 #include <algorithm>
+#include <bit>
 #include <cmath>
+#include <cstdint>
 #include <random>
 #include <vector>
 
 #include <gtest/gtest.h>
+#include <opencv2/core.hpp>
 
 #include "rankslam/geometry/matching.hpp"
 #include "rankslam/geometry/shot.hpp"
+#include "rankslam/parallel/cpu_features.hpp"
 #include "rankslam/parallel/thread_team.hpp"
 
 namespace rankslam::geometry {
@@ -183,6 +187,79 @@ TEST(Matcher, ConfigureRejectsBadSizes) {
   std::vector<DescriptorMatch> out(1);
   const float x = 1.0F;
   EXPECT_EQ(matcher.match(&x, 1, &x, 1, out), -1);
+}
+
+}  // namespace
+}  // namespace rankslam::geometry
+
+namespace rankslam::geometry {
+namespace {
+
+// 32-byte binary descriptors near a few bases (few bits flipped), so that many distances tie.
+cv::Mat binary_descriptors(int n, std::uint32_t seed) {
+  std::mt19937 rng(seed);
+  std::uniform_int_distribution<int> byte(0, 255);
+  std::uniform_int_distribution<int> bit(0, 255);
+  cv::Mat bases(4, 32, CV_8UC1);
+  for (int r = 0; r < bases.rows; ++r) {
+    for (int c = 0; c < 32; ++c) bases.at<std::uint8_t>(r, c) = static_cast<std::uint8_t>(byte(rng));
+  }
+  cv::Mat d(n, 32, CV_8UC1);
+  for (int r = 0; r < n; ++r) {
+    bases.row(r % bases.rows).copyTo(d.row(r));
+    for (int flips = r % 5; flips > 0; --flips) {
+      const int b = bit(rng);
+      d.at<std::uint8_t>(r, b / 8) ^= static_cast<std::uint8_t>(1U << (b % 8));
+    }
+  }
+  return d;
+}
+
+int hamming(const cv::Mat& a, int i, const cv::Mat& b, int j) {
+  int distance = 0;
+  for (int c = 0; c < 32; ++c) distance += std::popcount(static_cast<unsigned>(a.at<std::uint8_t>(i, c) ^ b.at<std::uint8_t>(j, c)));
+  return distance;
+}
+
+// Every set size around the vector widths (2, 4 and 8 lanes) and a frame's, with the vector
+// kernel and the portable loop: each source's nearest target and each target's nearest source
+// and distance, ties to the lower index, as a brute-force scan finds them.
+TEST(HammingNearest, BothWaysEqualBruteForceWithAndWithoutTheVectorKernel) {
+  for (const bool vector : {true, false}) {
+    HammingNearest nearest;
+    nearest.reserve(1100, vector);
+    EXPECT_EQ(nearest.uses_vector_kernel(), vector && parallel::vector_kernels_enabled());
+    for (const auto& [n_source, n_target] : std::vector<std::pair<int, int>>{
+             {1, 1}, {3, 7}, {13, 8}, {9, 9}, {40, 31}, {700, 1003}, {1003, 700}, {5, 1}}) {
+      const cv::Mat source = binary_descriptors(n_source, 7U + static_cast<std::uint32_t>(n_source));
+      const cv::Mat target = binary_descriptors(n_target, 11U + static_cast<std::uint32_t>(n_target));
+      nearest.scan(source, target);
+      std::vector<int> column_best(static_cast<std::size_t>(n_target), 1000);
+      std::vector<int> column_source(static_cast<std::size_t>(n_target), -1);
+      int wrong = 0;
+      for (int i = 0; i < n_source; ++i) {
+        int best = 1000;
+        int best_j = -1;
+        for (int j = 0; j < n_target; ++j) {
+          const int distance = hamming(source, i, target, j);
+          if (distance < best) {
+            best = distance;
+            best_j = j;
+          }
+          if (distance < column_best[static_cast<std::size_t>(j)]) {
+            column_best[static_cast<std::size_t>(j)] = distance;
+            column_source[static_cast<std::size_t>(j)] = i;
+          }
+        }
+        wrong += nearest.nearest_target(i) != static_cast<std::uint32_t>(best_j) ? 1 : 0;
+      }
+      for (int j = 0; j < n_target; ++j) {
+        wrong += nearest.nearest_source(j) != static_cast<std::uint32_t>(column_source[static_cast<std::size_t>(j)]) ? 1 : 0;
+        wrong += nearest.source_distance(j) != static_cast<std::uint32_t>(column_best[static_cast<std::size_t>(j)]) ? 1 : 0;
+      }
+      EXPECT_EQ(wrong, 0) << n_source << " x " << n_target << (vector ? ", vector kernel" : ", portable");
+    }
+  }
 }
 
 }  // namespace

@@ -2,6 +2,7 @@
 
 #include "rankslam/camera/depth_camera.hpp"
 #include "rankslam/features/ros2d.hpp"
+#include "rankslam/geometry/matching.hpp"
 #include "rankslam/slam/config.hpp"
 #include "rankslam/slam/image_source.hpp"
 #include "rankslam/slam/orb_extractor.hpp"
@@ -85,16 +86,13 @@ class MutualHammingMatcher {
  public:
   /// Set-up (allocates): room for descriptor sets of up to `max_descriptors` rows, so that
   /// match() allocates nothing for sets no larger. Without it the scratch grows to the largest
-  /// set matched so far, which can happen at any frame.
-  void reserve(std::size_t max_descriptors);
+  /// set matched so far, which can happen at any frame. `vector` false: the portable loop only
+  /// (the same matches).
+  void reserve(std::size_t max_descriptors, bool vector = true);
   void match(const cv::Mat& source, const cv::Mat& target, int max_distance, std::vector<FeatureMatch>& matches);
 
  private:
-  std::vector<std::uint32_t> best_source_for_target_;
-  std::vector<std::uint32_t> best_distance_for_target_;
-  std::vector<std::uint32_t> scratch_best_target_;
-  std::vector<std::uint64_t> source_words_;
-  std::vector<std::uint64_t> target_words_;
+  geometry::HammingNearest nearest_;
 };
 
 }  // namespace rankslam::slam

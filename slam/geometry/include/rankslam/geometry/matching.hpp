@@ -23,7 +23,45 @@
 
 #include "rankslam/parallel/thread_team.hpp"
 
+#include <opencv2/core/mat.hpp>
+
 namespace rankslam::geometry {
+
+/// Nearest neighbours of 256-bit binary descriptors (ORB's: rows of 32 bytes) by Hamming
+/// distance, both ways in one pass over the distance matrix: each source's nearest target and
+/// each target's nearest source, ties to the lower index. The vector kernel (where the CPU has
+/// one) compares a source with a vector of targets at once, the targets' words held as four
+/// planes; the portable loop covers the rest. Integer distances: the same values either way.
+class HammingNearest {
+ public:
+  static constexpr std::uint32_t kNone = 0xffffffffU;
+
+  /// Set-up (allocates): sets of up to `max_descriptors` rows, so that scan() allocates nothing
+  /// for sets no larger (a larger set grows the scratch). `vector` false: the portable loop only.
+  void reserve(std::size_t max_descriptors, bool vector = true);
+  /// Both sets CV_8UC1 with 32 columns.
+  void scan(const cv::Mat& source, const cv::Mat& target);
+
+  /// Source i's nearest target (kNone for an empty target set).
+  [[nodiscard]] std::uint32_t nearest_target(int i) const {
+    return static_cast<std::uint32_t>(row_arg_[static_cast<std::size_t>(i)]);
+  }
+  /// Target j's nearest source, and their distance.
+  [[nodiscard]] std::uint32_t nearest_source(int j) const {
+    return static_cast<std::uint32_t>(col_arg_[static_cast<std::size_t>(j)]);
+  }
+  [[nodiscard]] std::uint32_t source_distance(int j) const {
+    return static_cast<std::uint32_t>(col_best_[static_cast<std::size_t>(j)]);
+  }
+  /// True when scan() runs the vector kernel.
+  [[nodiscard]] bool uses_vector_kernel() const { return use_vector_; }
+
+ private:
+  bool use_vector_ = false;
+  std::vector<std::uint64_t> source_words_;  // row after row, 4 words each
+  std::vector<std::uint64_t> target_planes_;  // plane k: word k of every target (padded to 8)
+  std::vector<std::int64_t> row_best_, row_arg_, col_best_, col_arg_;
+};
 
 /// One mutual match: indices into the two descriptor sets and their Euclidean distance.
 struct DescriptorMatch {
