@@ -38,7 +38,8 @@ LocalMapper::LocalMapper(const SlamConfig& config, const camera::DepthCameraMode
   edges_.resize(static_cast<std::size_t>(kEdgesPerFrame * window_));
   const std::size_t slots = static_cast<std::size_t>(window_) * features_per_keyframe;
   matcher_.reserve(features_per_keyframe);
-  matches_.reserve(features_per_keyframe);
+  pairs_.resize(static_cast<std::size_t>(window_ * (window_ - 1) / 2));
+  for (PairMatches& pair : pairs_) pair.matches.reserve(features_per_keyframe);
   parent_.assign(slots, 0);
   frames_seen_.assign(slots, 0);
   conflicted_.assign(slots, 0);
@@ -176,15 +177,21 @@ void LocalMapper::associate() {
   }
   const auto fx = static_cast<float>(camera_.calibration().fx);
   const auto radius_px = static_cast<float>(config_.local.match_radius_px);
+  // The cached pairs this window still holds (frames_ is oldest first, as each window).
+  const auto in_window = [&](std::int64_t sequence) {
+    for (int k = 0; k < frame_count_; ++k) {
+      if (frames_[static_cast<std::size_t>(k)].sequence == sequence) return true;
+    }
+    return false;
+  };
+  for (PairMatches& pair : pairs_) pair.live = pair.first >= 0 && in_window(pair.first) && in_window(pair.second);
   for (int a = 0; a < frame_count_; ++a) {
     const WindowFrame& first = frames_[static_cast<std::size_t>(a)];
     for (int b = a + 1; b < frame_count_; ++b) {
       const WindowFrame& second = frames_[static_cast<std::size_t>(b)];
       if (first.count == 0 || second.count == 0) continue;
-      matcher_.match(first.descriptors.rowRange(0, first.count), second.descriptors.rowRange(0, second.count),
-                     config_.max_hamming_distance, matches_);
       const Eigen::Isometry3f T_first_second = (first.T_world_cam.inverse() * second.T_world_cam).cast<float>();
-      for (const FeatureMatch& match : matches_) {
+      for (const FeatureMatch& match : pair_matches(first, second)) {
         const Eigen::Vector3f& p = first.points_cam[match.source];
         const Eigen::Vector3f q = T_first_second * second.points_cam[match.target];
         const float sigma_p = first.sigma_m[match.source];
@@ -199,6 +206,21 @@ void LocalMapper::associate() {
       }
     }
   }
+}
+
+const std::vector<FeatureMatch>& LocalMapper::pair_matches(const WindowFrame& first, const WindowFrame& second) {
+  PairMatches* free = nullptr;
+  for (PairMatches& pair : pairs_) {
+    if (pair.live && pair.first == first.sequence && pair.second == second.sequence) return pair.matches;
+    if (!pair.live && free == nullptr) free = &pair;
+  }
+  // A window's pairs are at most the slots, and each live slot is one of them: one is free.
+  free->first = first.sequence;
+  free->second = second.sequence;
+  free->live = true;
+  matcher_.match(first.descriptors.rowRange(0, first.count), second.descriptors.rowRange(0, second.count),
+                 config_.max_hamming_distance, free->matches);
+  return free->matches;
 }
 
 void LocalMapper::adjust() {

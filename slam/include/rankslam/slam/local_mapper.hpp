@@ -128,9 +128,20 @@ class LocalMapper {
   /// The window's figures (only landmarks, observations, inliers and time are set).
   LocalMapCounters adjustment_;
 
+  /// A pair of key-frames' mutual matches, kept while both stay in the window: they depend on
+  /// the descriptors only, and the window moves by one key-frame at a time.
+  struct PairMatches {
+    std::int64_t first = -1;  ///< the key-frames' sequences, first older
+    std::int64_t second = -1;
+    bool live = false;  ///< a pair of the window being associated
+    std::vector<FeatureMatch> matches;
+  };
+  /// The pair's matches: cached, or matched into a slot no pair of the window holds.
+  const std::vector<FeatureMatch>& pair_matches(const WindowFrame& first, const WindowFrame& second);
+
   // Mapping-thread scratch.
   MutualHammingMatcher matcher_;
-  std::vector<FeatureMatch> matches_;
+  std::vector<PairMatches> pairs_;  ///< a slot per pair of a full window
   std::vector<int> parent_;              ///< per feature slot (frame · features + index)
   std::vector<std::uint32_t> frames_seen_;  ///< per root: a bit per window frame
   std::vector<std::uint8_t> conflicted_;   ///< per root: two features of one frame
