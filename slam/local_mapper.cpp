@@ -57,16 +57,9 @@ LocalMapper::LocalMapper(const SlamConfig& config, const camera::DepthCameraMode
   }
 }
 
+void LocalMapper::finish(Backend& backend) { (void)take(backend, true); }
+
 bool LocalMapper::submit(const KeyframeStore& store, const graph::PoseGraph& graph) {
-  return submit(store, graph, false);
-}
-
-void LocalMapper::finish(const KeyframeStore& store, Backend& backend) {
-  (void)take(backend, true);
-  if (submit(store, backend.graph(), true)) (void)take(backend, true);
-}
-
-bool LocalMapper::submit(const KeyframeStore& store, const graph::PoseGraph& graph, bool final_window) {
   if (!enabled() || submitted_) return false;
   // The newest key-frames with a node and features: each the newest older than the last taken.
   std::array<int, kMaxWindow> newest{};
@@ -123,7 +116,6 @@ bool LocalMapper::submit(const KeyframeStore& store, const graph::PoseGraph& gra
     edges_[static_cast<std::size_t>(edge_count_++)] = {from, to, edge.T_from_to, edge.information};
   }
   adjusted_ = false;
-  final_window_ = final_window;
   submitted_ = true;
   thread_.launch(job_);
   if (synchronous_) thread_.wait();
@@ -302,9 +294,10 @@ void LocalMapper::adjust_window() {
   // A registration edge takes the adjusted motion once (considered_through_: the newest key-frame
   // whose incoming edge was considered), when it is the window's oldest in a full window (every
   // later key-frame that sees its landmarks has joined; the next windows no longer hold it, so
-  // its landmarks are not counted twice), or at the end of a run; and only where
-  // landmarks tie its two key-frames as firmly as a registration needs.
-  const int last_pair = final_window_ ? frame_count_ - 1 : (frame_count_ == window_ ? 1 : 0);
+  // its landmarks are not counted twice), and only where landmarks tie its two key-frames as
+  // firmly as a registration needs. The newer edges' landmarks are seen by fewer key-frames: at
+  // the end of a run they keep their registrations.
+  const int last_pair = frame_count_ == window_ ? 1 : 0;
   for (int k = 0; k < last_pair; ++k) {
     if (frames_[static_cast<std::size_t>(k + 1)].sequence <= considered_through_) continue;
     considered_through_ = frames_[static_cast<std::size_t>(k + 1)].sequence;

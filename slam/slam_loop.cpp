@@ -347,7 +347,7 @@ void SlamLoop::finish() {
     loop_closer_.advance(0, ignored);
   }
   if (wide_) (void)wide_->finish();
-  local_.finish(keyframe_store_, backend_);
+  local_.finish(backend_);
   backend_.finish(keyframe_store_, [this](const Eigen::Isometry3d& correction) { correct_tracking(correction); });
   // The live map holds the stored key-frames' points at the poses they were added at: those are
   // the poses there are unless a closure or local mapping moved them.

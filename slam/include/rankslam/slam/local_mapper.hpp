@@ -40,9 +40,10 @@ struct LocalMapCounters {
 /// them, within the points' noise and `local.match_radius_px`; a landmark seen twice in one
 /// key-frame is dropped) and adjusts poses and landmarks together, the graph's registration,
 /// planar and wheel edges between those key-frames joining as priors (graph::LocalBundle). Each
-/// registration edge takes the adjusted motion once: when it is the oldest of a full window (the
-/// newest window's others at finish()), and only where its two key-frames share at least
-/// `min_inliers` landmarks within the Huber threshold. The pose graph spreads it.
+/// registration edge takes the adjusted motion once: when it is the oldest of a full window, and
+/// only where its two key-frames share at least `min_inliers` landmarks within the Huber
+/// threshold (the newest window's other edges keep their registrations). The pose graph spreads
+/// it.
 ///
 /// Every buffer is sized at construction; handing a window over and taking the result allocate
 /// nothing; the adjustment's Ceres solve allocates on the mapping thread.
@@ -66,9 +67,8 @@ class LocalMapper {
   /// key-frames are still the same nodes; how many. 0 when none finished (`wait`: waits for
   /// one under way, at the end of a run).
   int take(Backend& backend, bool wait = false);
-  /// End of a run: takes the adjustment under way, then adjusts the newest window once more and
-  /// refines all its edges (waits for both).
-  void finish(const KeyframeStore& store, Backend& backend);
+  /// End of a run: takes the adjustment under way (waits for it).
+  void finish(Backend& backend);
 
   [[nodiscard]] const LocalMapCounters& counters() const { return counters_; }
 
@@ -93,8 +93,6 @@ class LocalMapper {
     graph::LocalBundle::Matrix6d information = graph::LocalBundle::Matrix6d::Identity();
   };
 
-  /// `final_window`: every edge of the window is refined, not only the oldest (end of a run).
-  bool submit(const KeyframeStore& store, const graph::PoseGraph& graph, bool final_window);
   /// Mapping thread: adjust_window(), timed.
   void adjust();
   /// Landmarks, adjustment, refined edges.
@@ -121,7 +119,6 @@ class LocalMapper {
   std::vector<WindowEdge> edges_;
   int edge_count_ = 0;
   bool adjusted_ = false;
-  bool final_window_ = false;
   /// The newest key-frame (by sequence) whose edge from the one before was considered for
   /// refinement; the mapping thread's, read and written only while it holds a window.
   std::int64_t considered_through_ = 0;
