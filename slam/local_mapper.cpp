@@ -86,7 +86,6 @@ bool LocalMapper::submit(const KeyframeStore& store, const graph::PoseGraph& gra
     frame.generation = keyframe.generation;
     frame.sequence = keyframe.sequence;
     frame.T_world_cam = keyframe.T_world_cam;
-    frame.refined = false;
     const PhotometricFeatures& features = keyframe.photometric;
     frame.count = std::min(static_cast<int>(features.size()), features_);
     for (int i = 0; i < frame.count; ++i) {
@@ -116,6 +115,7 @@ bool LocalMapper::submit(const KeyframeStore& store, const graph::PoseGraph& gra
     edges_[static_cast<std::size_t>(edge_count_++)] = {from, to, edge.T_from_to, edge.information};
   }
   adjusted_ = false;
+  oldest_refined_ = false;
   submitted_ = true;
   thread_.launch(job_);
   if (synchronous_) thread_.wait();
@@ -136,17 +136,14 @@ int LocalMapper::take(Backend& backend, bool wait) {
     ++counters_.failed;
     return 0;
   }
-  int refined = 0;
-  for (int k = 0; k + 1 < frame_count_; ++k) {
-    const WindowFrame& frame = frames_[static_cast<std::size_t>(k)];
-    const WindowFrame& next = frames_[static_cast<std::size_t>(k + 1)];
-    if (!frame.refined) continue;
-    if (backend.refine_sequential_edge(frame.node, frame.generation, next.node, next.generation, frame.T_this_next)) {
-      ++refined;
-    }
+  if (!oldest_refined_) return 0;
+  const WindowFrame& oldest = frames_[0];
+  const WindowFrame& next = frames_[1];
+  if (!backend.refine_sequential_edge(oldest.node, oldest.generation, next.node, next.generation, T_oldest_next_)) {
+    return 0;
   }
-  counters_.refined_edges += refined;
-  return refined;
+  ++counters_.refined_edges;
+  return 1;
 }
 
 int LocalMapper::find_root(int slot) {
@@ -297,19 +294,17 @@ void LocalMapper::adjust_window() {
   // its landmarks are not counted twice), and only where landmarks tie its two key-frames as
   // firmly as a registration needs. The newer edges' landmarks are seen by fewer key-frames: at
   // the end of a run they keep their registrations.
-  const int last_pair = frame_count_ == window_ ? 1 : 0;
-  for (int k = 0; k < last_pair; ++k) {
-    if (frames_[static_cast<std::size_t>(k + 1)].sequence <= considered_through_) continue;
-    considered_through_ = frames_[static_cast<std::size_t>(k + 1)].sequence;
-    const std::uint32_t both = (1U << static_cast<unsigned>(k)) | (1U << static_cast<unsigned>(k + 1));
-    int shared = 0;
-    for (int l = 0; l < landmarks; ++l) shared += (inlier_frames_[static_cast<std::size_t>(l)] & both) == both ? 1 : 0;
-    WindowFrame& frame = frames_[static_cast<std::size_t>(k)];
-    if (shared < config_.min_inliers) continue;
-    frame.refined = true;
-    frame.T_this_next = lie::renormalised(bundle_.pose(k).inverse() * bundle_.pose(k + 1));
-  }
   adjusted_ = true;
+  if (frame_count_ < window_ || frames_[1].sequence <= considered_through_) return;
+  considered_through_ = frames_[1].sequence;
+  constexpr std::uint32_t kOldestTwo = 0b11U;
+  int shared = 0;
+  for (int l = 0; l < landmarks; ++l) {
+    shared += (inlier_frames_[static_cast<std::size_t>(l)] & kOldestTwo) == kOldestTwo ? 1 : 0;
+  }
+  if (shared < config_.min_inliers) return;
+  oldest_refined_ = true;
+  T_oldest_next_ = lie::renormalised(bundle_.pose(0).inverse() * bundle_.pose(1));
 }
 
 }  // namespace rankslam::slam

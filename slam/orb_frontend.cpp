@@ -1,10 +1,8 @@
 #include "rankslam/slam/orb_frontend.hpp"
 
 #include <algorithm>
-#include <bit>
 #include <cmath>
 #include <cstring>
-#include <limits>
 
 namespace rankslam::slam {
 
@@ -121,9 +119,7 @@ void OrbFrontend::extract(const cv::Mat& gray, const cv::Mat& depth, Photometric
   features.descriptors = features.descriptor_storage.rowRange(0, kept);
 }
 
-void MutualHammingMatcher::reserve(std::size_t max_descriptors, bool vector) {
-  nearest_.reserve(max_descriptors, vector);
-}
+void MutualHammingMatcher::reserve(std::size_t max_descriptors) { nearest_.reserve(max_descriptors); }
 
 void MutualHammingMatcher::match(const cv::Mat& source, const cv::Mat& target, int max_distance,
                                  std::vector<FeatureMatch>& matches) {

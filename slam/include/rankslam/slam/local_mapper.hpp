@@ -82,9 +82,6 @@ class LocalMapper {
     std::vector<Eigen::Vector3f> points_cam;
     std::vector<float> sigma_m;
     cv::Mat descriptors;  ///< room for every feature; the first `count` rows hold them
-    /// The adjusted T_this_next, where the registration edge to the next frame is refined.
-    bool refined = false;
-    Eigen::Isometry3d T_this_next = Eigen::Isometry3d::Identity();
   };
   struct WindowEdge {
     int from = 0;
@@ -119,6 +116,9 @@ class LocalMapper {
   std::vector<WindowEdge> edges_;
   int edge_count_ = 0;
   bool adjusted_ = false;
+  /// The adjusted motion of the window's oldest edge, where the adjustment refines it.
+  bool oldest_refined_ = false;
+  Eigen::Isometry3d T_oldest_next_ = Eigen::Isometry3d::Identity();
   /// The newest key-frame (by sequence) whose edge from the one before was considered for
   /// refinement; the mapping thread's, read and written only while it holds a window.
   std::int64_t considered_through_ = 0;

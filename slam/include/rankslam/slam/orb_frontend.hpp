@@ -86,9 +86,8 @@ class MutualHammingMatcher {
  public:
   /// Set-up (allocates): room for descriptor sets of up to `max_descriptors` rows, so that
   /// match() allocates nothing for sets no larger. Without it the scratch grows to the largest
-  /// set matched so far, which can happen at any frame. `vector` false: the portable loop only
-  /// (the same matches).
-  void reserve(std::size_t max_descriptors, bool vector = true);
+  /// set matched so far, which can happen at any frame.
+  void reserve(std::size_t max_descriptors);
   void match(const cv::Mat& source, const cv::Mat& target, int max_distance, std::vector<FeatureMatch>& matches);
 
  private:
