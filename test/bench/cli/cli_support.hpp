@@ -33,7 +33,14 @@ inline CommandResult run_shell(const std::string& command_line) {
 }
 
 /// Runs rankslam with `arguments`.
-inline CommandResult run(const std::string& arguments) { return run_shell(std::string(RANKSLAM_EXE) + " " + arguments); }
+inline CommandResult run(const std::string& arguments) {
+  // Appended, not `std::string(RANKSLAM_EXE) + " " + arguments`: GCC 12 reports a false
+  // -Warray-bounds in that temporary's move at -O2.
+  std::string command = RANKSLAM_EXE;
+  command += ' ';
+  command += arguments;
+  return run_shell(command);
+}
 
 inline std::string slurp(const std::filesystem::path& path) {
   std::ifstream in(path, std::ios::binary);
