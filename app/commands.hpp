@@ -38,6 +38,7 @@ struct SimulateArgs {
   std::filesystem::path out;
   int frames = 0;
   std::uint64_t seed = 1;
+  std::uint64_t scene_seed = 0;
   bool motion_blur = false;
 };
 

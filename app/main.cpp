@@ -59,6 +59,7 @@ int main(int argc, char** argv) {
   simulate_cmd->add_option("--out,-o", simulate.out, "Output recording directory (absent or empty)")->required();
   simulate_cmd->add_option("--frames,-n", simulate.frames, "Number of RGB-D frames (0 = the scene's default)")->check(CLI::NonNegativeNumber);
   simulate_cmd->add_option("--seed,-s", simulate.seed, "Random seed; equal seeds give byte-identical recordings");
+  simulate_cmd->add_option("--scene-seed", simulate.scene_seed, "Seed of the textures alone (0: --seed): the same place, painted alike, under other noise");
   simulate_cmd->add_flag("--motion-blur", simulate.motion_blur, "Blur images by the camera motion during exposure");
 
   VocabularyArgs vocabulary;

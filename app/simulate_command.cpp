@@ -14,6 +14,7 @@ int run_simulate(const SimulateArgs& args) {
   options.out_dir = args.out;
   options.frames = args.frames;
   options.seed = args.seed;
+  options.scene_seed = args.scene_seed;
   options.motion_blur = args.motion_blur;
   sim::SimulationSummary summary{};
   if (auto error = sim::simulate_recording(options, &summary); !error.empty()) {

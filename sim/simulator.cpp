@@ -460,6 +460,7 @@ std::string write_text_files(const SceneModel& scene, const SimulationOptions& o
   const fs::path& dir = options.out_dir;
   const int end = first + frames;
   const std::string origin = "# file: 'rankslam simulate " + scene.name + " --seed " + std::to_string(options.seed) +
+                             (options.scene_seed != 0 ? " --scene-seed " + std::to_string(options.scene_seed) : std::string()) +
                              " --frames " + std::to_string(frames) +
                              (first > 0 ? " --first-frame " + std::to_string(first) : std::string()) + "'\n";
   auto stamped_list = [&](const char* title, const char* folder, int divider) {
@@ -572,7 +573,7 @@ std::string simulate_recording(const SimulationOptions& options, SimulationSumma
   std::string error;
   std::optional<SceneModel> scene;
   try {
-    scene = make_scene(options.scene, options.seed, &error);
+    scene = make_scene(options.scene, options.scene_seed != 0 ? options.scene_seed : options.seed, &error);
   } catch (const std::exception& e) {
     return "cannot build scene '" + options.scene + "': " + e.what();
   }

@@ -274,6 +274,46 @@ TEST(SimDeterminism, SeedChangesAppearanceNotGroundTruth) {
   EXPECT_EQ(testing::read_rows(a / "groundtruth.txt"), testing::read_rows(b / "groundtruth.txt"));
 }
 
+TEST(SimDeterminism, SceneSeedPaintsTheSceneWhateverTheNoiseSeed) {
+  // Without sensor noise the images are the paint alone: the scene seed decides them.
+  TempDir a("scene_seed_a");
+  TempDir b("scene_seed_b");
+  TempDir c("scene_seed_c");
+  auto options = testing::options_for("office", a.path(), 2);
+  options.sensor_noise = false;
+  options.seed = 1;
+  ASSERT_EQ(simulate_recording(options, nullptr), "");
+  options.out_dir = b.path();
+  options.seed = 2;
+  options.scene_seed = 1;
+  ASSERT_EQ(simulate_recording(options, nullptr), "");
+  options.out_dir = c.path();
+  options.scene_seed = 0;
+  ASSERT_EQ(simulate_recording(options, nullptr), "");
+  const auto rgb = testing::read_rows(a / "rgb.txt");
+  const cv::Mat image_a = cv::imread((a / rgb[1][1]).string());
+  const cv::Mat image_b = cv::imread((b / rgb[1][1]).string());
+  const cv::Mat image_c = cv::imread((c / rgb[1][1]).string());
+  ASSERT_FALSE(image_a.empty());
+  EXPECT_EQ(cv::norm(image_a, image_b, cv::NORM_INF), 0.0);
+  EXPECT_GT(cv::norm(image_a, image_c, cv::NORM_L1) / static_cast<double>(image_a.total()), 3.0);
+  // With noise, the same paint under the other seed's noise: closer than other paint.
+  TempDir d("scene_seed_d");
+  TempDir e("scene_seed_e");
+  options.sensor_noise = true;
+  options.out_dir = d.path();
+  options.seed = 1;
+  ASSERT_EQ(simulate_recording(options, nullptr), "");
+  options.out_dir = e.path();
+  options.seed = 2;
+  options.scene_seed = 1;
+  ASSERT_EQ(simulate_recording(options, nullptr), "");
+  const cv::Mat image_d = cv::imread((d / rgb[1][1]).string());
+  const cv::Mat image_e = cv::imread((e / rgb[1][1]).string());
+  EXPECT_GT(cv::norm(image_d, image_e, cv::NORM_INF), 0.0);
+  EXPECT_LT(cv::norm(image_d, image_e, cv::NORM_L1), 0.5 * cv::norm(image_a, image_c, cv::NORM_L1));
+}
+
 TEST(SimDeterminism, MotionBlurIsDeterministicAndBlurs) {
   TempDir sharp("sharp");
   TempDir blur_a("blur_a");

@@ -31,6 +31,9 @@ struct SimulationOptions {
   /// Drives textures, sensor noise, encoder noise and wheel slip; geometry and motion are fixed
   /// per scene so recordings of different seeds share the ground truth.
   std::uint64_t seed = 1;
+  /// Drives the textures alone when not 0: recordings of one scene seed and different seeds are
+  /// the same place, painted alike, seen through other noise (a later session in a saved map).
+  std::uint64_t scene_seed = 0;
   /// Averages sub-exposure renders along the motion (colour, IR and fisheye images; depth is
   /// taken at the frame time). Costs motion_blur_samples times the rendering work.
   bool motion_blur = false;
