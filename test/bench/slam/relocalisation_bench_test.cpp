@@ -302,9 +302,9 @@ TEST(RelocalisationBench, WithWheelsTheFramesAfterARelocalisationStayWhereTheyWe
 
 TEST(RelocalisationBench, LoopsClosedInASavedMapAgreeWithTheGroundTruth) {
   // A map of a simulated corridor's first 600 frames, vision only, then frames 300-599 of another
-  // seed (the same path, other noise) started in it: no closure, most of them onto the map's
-  // key-frames, more than 5 cm from the true relative pose. Taken without the neighbours'
-  // agreement (docs/methods.md §10), one was 0.217 m off.
+  // seed (the same path and walls, other paint and noise) started in it: no closure, most of them
+  // onto the map's key-frames, more than 5 cm from the true relative pose. Taken without the
+  // neighbours' agreement (docs/methods.md §10), one was 0.217 m off.
   SlamConfig config;
   config.mode = Mode::kFused;
   const fs::path map = fs::temp_directory_path() / ("rankslam_bench_closures_" + std::to_string(::getpid()) + ".map");
