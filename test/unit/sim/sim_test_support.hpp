@@ -5,6 +5,7 @@
 
 #include <Eigen/Geometry>
 #include <opencv2/core.hpp>
+#include <opencv2/imgcodecs.hpp>
 #include <yaml-cpp/yaml.h>
 
 #include <unistd.h>
@@ -66,6 +67,12 @@ inline std::vector<std::vector<std::string>> read_rows(const fs::path& path) {
     rows.push_back(row);
   }
   return rows;
+}
+
+/// Image `index` of a recording's list (`rgb.txt`, `depth.txt`, ...), read with `flags`.
+inline cv::Mat image_of(const fs::path& dir, const std::string& list, std::size_t index, int flags) {
+  const auto rows = read_rows(dir / list);
+  return cv::imread((dir / rows.at(index).at(1)).string(), flags);
 }
 
 inline std::vector<std::string> read_all_lines(const fs::path& path) {

@@ -275,41 +275,26 @@ TEST(SimDeterminism, SeedChangesAppearanceNotGroundTruth) {
 }
 
 TEST(SimDeterminism, SceneSeedPaintsTheSceneWhateverTheNoiseSeed) {
+  // The office's second colour image, simulated with these seeds.
+  const auto colour = [](std::uint64_t seed, std::uint64_t scene_seed, bool sensor_noise) {
+    TempDir dir("scene_seed");
+    auto options = testing::options_for("office", dir.path(), 2);
+    options.seed = seed;
+    options.scene_seed = scene_seed;
+    options.sensor_noise = sensor_noise;
+    EXPECT_EQ(simulate_recording(options, nullptr), "");
+    return testing::image_of(dir.path(), "rgb.txt", 1, cv::IMREAD_COLOR);
+  };
   // Without sensor noise the images are the paint alone: the scene seed decides them.
-  TempDir a("scene_seed_a");
-  TempDir b("scene_seed_b");
-  TempDir c("scene_seed_c");
-  auto options = testing::options_for("office", a.path(), 2);
-  options.sensor_noise = false;
-  options.seed = 1;
-  ASSERT_EQ(simulate_recording(options, nullptr), "");
-  options.out_dir = b.path();
-  options.seed = 2;
-  options.scene_seed = 1;
-  ASSERT_EQ(simulate_recording(options, nullptr), "");
-  options.out_dir = c.path();
-  options.scene_seed = 0;
-  ASSERT_EQ(simulate_recording(options, nullptr), "");
-  const auto rgb = testing::read_rows(a / "rgb.txt");
-  const cv::Mat image_a = cv::imread((a / rgb[1][1]).string());
-  const cv::Mat image_b = cv::imread((b / rgb[1][1]).string());
-  const cv::Mat image_c = cv::imread((c / rgb[1][1]).string());
+  const cv::Mat image_a = colour(1, 0, false);
+  const cv::Mat image_b = colour(2, 1, false);
+  const cv::Mat image_c = colour(2, 0, false);
   ASSERT_FALSE(image_a.empty());
   EXPECT_EQ(cv::norm(image_a, image_b, cv::NORM_INF), 0.0);
   EXPECT_GT(cv::norm(image_a, image_c, cv::NORM_L1) / static_cast<double>(image_a.total()), 3.0);
   // With noise, the same paint under the other seed's noise: closer than other paint.
-  TempDir d("scene_seed_d");
-  TempDir e("scene_seed_e");
-  options.sensor_noise = true;
-  options.out_dir = d.path();
-  options.seed = 1;
-  ASSERT_EQ(simulate_recording(options, nullptr), "");
-  options.out_dir = e.path();
-  options.seed = 2;
-  options.scene_seed = 1;
-  ASSERT_EQ(simulate_recording(options, nullptr), "");
-  const cv::Mat image_d = cv::imread((d / rgb[1][1]).string());
-  const cv::Mat image_e = cv::imread((e / rgb[1][1]).string());
+  const cv::Mat image_d = colour(1, 0, true);
+  const cv::Mat image_e = colour(2, 1, true);
   EXPECT_GT(cv::norm(image_d, image_e, cv::NORM_INF), 0.0);
   EXPECT_LT(cv::norm(image_d, image_e, cv::NORM_L1), 0.5 * cv::norm(image_a, image_c, cv::NORM_L1));
 }

@@ -13,12 +13,8 @@
 namespace rankslam::sim {
 namespace {
 
+using testing::image_of;
 using testing::TempDir;
-
-cv::Mat image_of(const std::filesystem::path& dir, const std::string& list, std::size_t index, int flags) {
-  const auto rows = testing::read_rows(dir / list);
-  return cv::imread((dir / rows.at(index).at(1)).string(), flags);
-}
 
 TEST(SimDepthNoise, GrowsWithTheSquareOfDepthAndIsQuantisedInDisparity) {
   // The corridor seen down a straight: floor and walls from 0.7 m to beyond the range.
